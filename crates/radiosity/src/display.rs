@@ -1,0 +1,206 @@
+//! The display mesh: shaded triangles for the rasteriser, from elements and their radiosity.
+//!
+//! Pixel values are radiance L = B/π (W·m⁻²·sr⁻¹) for Lambertian surfaces.
+//! - Flat shading: each element shows its own radiosity.
+//! - Smooth (Gouraud) shading: each vertex gets the area-weighted mean radiosity of the
+//!   elements of the same surface that share it, interpolated across each element.
+//!
+//! Crack-free: a vertex of any element that lies on another element's edge (a T-junction,
+//! e.g. where the light meets the ceiling, or after adaptive refinement) is inserted into that
+//! edge, and the element is fanned from its centre, so no gap can open along the edge. The
+//! inserted vertex takes the value interpolated along the edge, so shading stays continuous.
+//! Surfaces are one-sided: seen from behind they are black.
+
+use crate::mesh::Element;
+use crate::render::ShadedTriangle;
+use glam::DVec3;
+use std::collections::HashMap;
+use std::f64::consts::PI;
+
+/// Shading mode.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Shading {
+    Flat,
+    #[default]
+    Smooth,
+}
+
+/// Hanging vertices on each element edge: `edges[e][k]` lists (t, vertex) along edge k of
+/// element e, sorted by t ∈ (0, 1).
+pub struct Conformity {
+    edges: Vec<Vec<Vec<(f64, u32)>>>,
+}
+
+impl Conformity {
+    /// Finds every vertex lying strictly inside an element edge (spatial hash, tolerance
+    /// 1e-7 of the edge length).
+    pub fn find(vertices: &[DVec3], elements: &[Element]) -> Self {
+        // Cell size from the mean edge length.
+        let mut total = 0.0;
+        let mut count = 0usize;
+        for e in elements {
+            for k in 0..e.corners.len() {
+                let a = vertices[e.corners[k] as usize];
+                let b = vertices[e.corners[(k + 1) % e.corners.len()] as usize];
+                total += a.distance(b);
+                count += 1;
+            }
+        }
+        let cell = (total / count.max(1) as f64).max(1e-12);
+        let key = |p: DVec3| -> (i64, i64, i64) {
+            let q = (p / cell).floor();
+            (q.x as i64, q.y as i64, q.z as i64)
+        };
+        let mut grid: HashMap<(i64, i64, i64), Vec<u32>> = HashMap::new();
+        for (i, v) in vertices.iter().enumerate() {
+            grid.entry(key(*v)).or_default().push(i as u32);
+        }
+        let edges = elements
+            .iter()
+            .map(|e| {
+                (0..e.corners.len())
+                    .map(|k| {
+                        let (ia, ib) = (e.corners[k], e.corners[(k + 1) % e.corners.len()]);
+                        let (a, b) = (vertices[ia as usize], vertices[ib as usize]);
+                        let d = b - a;
+                        let len2 = d.length_squared();
+                        let tol = 1e-7 * len2.sqrt();
+                        let (lo, hi) = (key(a.min(b) - DVec3::splat(tol)), key(a.max(b) + DVec3::splat(tol)));
+                        let mut found = Vec::new();
+                        if (hi.0 - lo.0 + 1) * (hi.1 - lo.1 + 1) * (hi.2 - lo.2 + 1) > 4096 {
+                            return found; // a huge edge: skip the search rather than stall
+                        }
+                        for x in lo.0..=hi.0 {
+                            for y in lo.1..=hi.1 {
+                                for z in lo.2..=hi.2 {
+                                    for &v in grid.get(&(x, y, z)).into_iter().flatten() {
+                                        if v == ia || v == ib {
+                                            continue;
+                                        }
+                                        let p = vertices[v as usize];
+                                        let t = (p - a).dot(d) / len2;
+                                        if t <= 1e-9 || t >= 1.0 - 1e-9 {
+                                            continue;
+                                        }
+                                        if (a + d * t).distance(p) <= tol {
+                                            found.push((t, v));
+                                        }
+                                    }
+                                }
+                            }
+                        }
+                        found.sort_by(|x, y| x.0.total_cmp(&y.0));
+                        found.dedup_by(|x, y| (x.0 - y.0).abs() < 1e-12);
+                        found
+                    })
+                    .collect()
+            })
+            .collect();
+        Self { edges }
+    }
+
+    /// Number of hanging vertices found.
+    pub fn hanging_count(&self) -> usize {
+        self.edges.iter().flatten().map(Vec::len).sum()
+    }
+}
+
+/// Builds the shaded triangles for a camera at `eye`.
+pub fn shaded_triangles(
+    vertices: &[DVec3],
+    elements: &[Element],
+    radiosity: &[[f64; 3]],
+    shading: Shading,
+    conformity: &Conformity,
+    eye: DVec3,
+) -> Vec<ShadedTriangle> {
+    // Vertex radiosity: area-weighted mean over adjacent elements (vertices are shared only
+    // within one surface, so this never blends across surfaces).
+    let mut vertex_b = vec![[0.0f64; 3]; vertices.len()];
+    let mut weight = vec![0.0f64; vertices.len()];
+    if shading == Shading::Smooth {
+        for (e, b) in elements.iter().zip(radiosity) {
+            for &c in &e.corners {
+                for ch in 0..3 {
+                    vertex_b[c as usize][ch] += e.area * b[ch];
+                }
+                weight[c as usize] += e.area;
+            }
+        }
+        for (v, w) in vertex_b.iter_mut().zip(&weight) {
+            if *w > 0.0 {
+                v.iter_mut().for_each(|x| *x /= w);
+            }
+        }
+    }
+    let to_radiance = |b: [f64; 3]| b.map(|x| (x / PI) as f32);
+    let mut out = Vec::with_capacity(elements.len() * 4);
+    for (i, (e, b)) in elements.iter().zip(radiosity).enumerate() {
+        let front = (eye - e.centre).dot(e.normal) > 0.0;
+        let corner_value = |c: u32| -> [f64; 3] {
+            if !front {
+                [0.0; 3]
+            } else if shading == Shading::Smooth {
+                vertex_b[c as usize]
+            } else {
+                *b
+            }
+        };
+        // Boundary loop with hanging vertices inserted (values interpolated along the edge).
+        let mut loop_pts: Vec<(DVec3, [f64; 3])> = Vec::with_capacity(e.corners.len() * 2);
+        let n = e.corners.len();
+        for k in 0..n {
+            let (ca, cb) = (e.corners[k], e.corners[(k + 1) % n]);
+            let (va, vb) = (corner_value(ca), corner_value(cb));
+            loop_pts.push((vertices[ca as usize], va));
+            for &(t, v) in &conformity.edges[i][k] {
+                let val = std::array::from_fn(|ch| va[ch] * (1.0 - t) + vb[ch] * t);
+                loop_pts.push((vertices[v as usize], val));
+            }
+        }
+        if loop_pts.len() == 3 {
+            out.push(ShadedTriangle {
+                positions: [loop_pts[0].0, loop_pts[1].0, loop_pts[2].0],
+                radiance: [
+                    to_radiance(loop_pts[0].1),
+                    to_radiance(loop_pts[1].1),
+                    to_radiance(loop_pts[2].1),
+                ],
+            });
+            continue;
+        }
+        // Fan from the centre; its value is the mean of the corners (bilinear centre value).
+        let mut centre_value = [0.0; 3];
+        for &c in &e.corners {
+            let v = corner_value(c);
+            for ch in 0..3 {
+                centre_value[ch] += v[ch] / n as f64;
+            }
+        }
+        let centre = e.corners.iter().map(|&c| vertices[c as usize]).sum::<DVec3>() / n as f64;
+        for k in 0..loop_pts.len() {
+            let (p, vp) = loop_pts[k];
+            let (q, vq) = loop_pts[(k + 1) % loop_pts.len()];
+            out.push(ShadedTriangle {
+                positions: [centre, p, q],
+                radiance: [to_radiance(centre_value), to_radiance(vp), to_radiance(vq)],
+            });
+        }
+    }
+    out
+}
+
+/// Element edges as line segments (for the wireframe overlay), each shared edge once.
+pub fn element_edges(vertices: &[DVec3], elements: &[Element]) -> Vec<[DVec3; 2]> {
+    let mut seen = std::collections::HashSet::new();
+    let mut out = Vec::new();
+    for e in elements {
+        for k in 0..e.corners.len() {
+            let (a, b) = (e.corners[k], e.corners[(k + 1) % e.corners.len()]);
+            if seen.insert((a.min(b), a.max(b))) {
+                out.push([vertices[a as usize], vertices[b as usize]]);
+            }
+        }
+    }
+    out
+}

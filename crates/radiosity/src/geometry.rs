@@ -1,0 +1,406 @@
+//! Planar convex polygons: the geometric primitive every later stage works on.
+//!
+//! Lengths are in metres; vertices are `f64` because form-factor and solver accuracy
+//! (1e-6 and better) depends on them. Polygons are counter-clockwise seen from their
+//! front (lit, emitting) side; the normal is `normalize(cross(v1 - v0, v2 - v0))`, computed
+//! robustly with Newell's method.
+//!
+//! See also: [`split_into_convex`] for turning arbitrary input faces into valid polygons.
+
+use glam::DVec3;
+
+/// Why a list of vertices is not a usable polygon.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum GeometryError {
+    #[error("polygon has {0} distinct vertices; at least 3 are needed")]
+    TooFewVertices(usize),
+    #[error("polygon has a non-finite coordinate (NaN or infinity)")]
+    NonFinite,
+    #[error("polygon is degenerate (area {area:.3e} m², collinear or repeated vertices)")]
+    Degenerate { area: f64 },
+    #[error("polygon is not planar: a vertex lies {deviation:.3e} m off its plane")]
+    NonPlanar { deviation: f64 },
+    #[error("polygon is not convex")]
+    NonConvex,
+    #[error("polygon coordinate {value:e} m is out of range (|x| must stay below {limit:e} m)")]
+    OutOfRange { value: f64, limit: f64 },
+}
+
+/// Coordinates beyond this (metres) are rejected as absurd: 1e6 m is a city-sized scene.
+pub const COORDINATE_LIMIT: f64 = 1.0e6;
+
+/// A planar, convex polygon with at least three vertices, counter-clockwise seen from the front.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Polygon {
+    vertices: Vec<DVec3>,
+    normal: DVec3,
+    area: f64,
+}
+
+impl Polygon {
+    /// Validates and builds a polygon: finite, in range, non-degenerate, planar and convex.
+    ///
+    /// Consecutive duplicate vertices are removed first. Planarity tolerance is relative:
+    /// 1e-6 of the polygon's diameter (plus 1e-12 m).
+    pub fn new(vertices: Vec<DVec3>) -> Result<Self, GeometryError> {
+        let vertices = check_vertices(vertices)?;
+        let (normal, area) = newell(&vertices);
+        let diameter = diameter(&vertices);
+        if !(area > 1e-14 * diameter * diameter) || area < 1e-20 {
+            return Err(GeometryError::Degenerate { area });
+        }
+        let deviation = plane_deviation(&vertices, normal);
+        if deviation > 1e-6 * diameter + 1e-12 {
+            return Err(GeometryError::NonPlanar { deviation });
+        }
+        if !is_convex(&vertices, normal) {
+            return Err(GeometryError::NonConvex);
+        }
+        Ok(Self {
+            vertices,
+            normal,
+            area,
+        })
+    }
+
+    /// Builds a polygon already known to be valid (e.g. a sub-polygon of a valid one).
+    /// Only the cheap checks run in debug builds.
+    pub fn new_unchecked(vertices: Vec<DVec3>) -> Self {
+        let (normal, area) = newell(&vertices);
+        debug_assert!(vertices.len() >= 3 && area > 0.0);
+        Self {
+            vertices,
+            normal,
+            area,
+        }
+    }
+
+    /// Vertices, counter-clockwise seen from the front.
+    pub fn vertices(&self) -> &[DVec3] {
+        &self.vertices
+    }
+
+    /// Unit normal on the front side.
+    pub fn normal(&self) -> DVec3 {
+        self.normal
+    }
+
+    /// Area in m².
+    pub fn area(&self) -> f64 {
+        self.area
+    }
+
+    /// Area centroid.
+    pub fn centroid(&self) -> DVec3 {
+        let v0 = self.vertices[0];
+        let mut sum = DVec3::ZERO;
+        let mut total = 0.0;
+        for w in self.vertices[1..].windows(2) {
+            let a = (w[0] - v0).cross(w[1] - v0).dot(self.normal) * 0.5;
+            sum += a * (v0 + w[0] + w[1]) / 3.0;
+            total += a;
+        }
+        sum / total
+    }
+
+    /// Longest edge length in m.
+    pub fn max_edge(&self) -> f64 {
+        self.edges().map(|(a, b)| a.distance(b)).fold(0.0, f64::max)
+    }
+
+    /// Largest distance between two vertices (m).
+    pub fn diameter(&self) -> f64 {
+        diameter(&self.vertices)
+    }
+
+    /// Edges as (start, end) pairs, closing the loop.
+    pub fn edges(&self) -> impl Iterator<Item = (DVec3, DVec3)> + '_ {
+        let n = self.vertices.len();
+        (0..n).map(move |i| (self.vertices[i], self.vertices[(i + 1) % n]))
+    }
+
+    /// Fan triangulation from vertex 0 (valid because the polygon is convex).
+    pub fn triangles(&self) -> impl Iterator<Item = [DVec3; 3]> + '_ {
+        let v0 = self.vertices[0];
+        self.vertices[1..].windows(2).map(move |w| [v0, w[0], w[1]])
+    }
+
+    /// Signed distance of `p` from the polygon's plane, positive in front.
+    pub fn plane_distance(&self, p: DVec3) -> f64 {
+        (p - self.vertices[0]).dot(self.normal)
+    }
+
+    /// Euclidean distance from `p` to the (filled) polygon.
+    pub fn distance_to(&self, p: DVec3) -> f64 {
+        let h = self.plane_distance(p);
+        let q = p - self.normal * h;
+        let inside = self
+            .edges()
+            .all(|(a, b)| (b - a).cross(q - a).dot(self.normal) >= 0.0);
+        if inside {
+            return h.abs();
+        }
+        self.edges()
+            .map(|(a, b)| {
+                let d = b - a;
+                let t = ((p - a).dot(d) / d.length_squared()).clamp(0.0, 1.0);
+                p.distance(a + d * t)
+            })
+            .fold(f64::INFINITY, f64::min)
+    }
+
+    /// Axis-aligned bounds (min, max).
+    pub fn bounds(&self) -> (DVec3, DVec3) {
+        self.vertices.iter().fold(
+            (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+            |(lo, hi), v| (lo.min(*v), hi.max(*v)),
+        )
+    }
+
+    /// The part of the polygon strictly in front of the plane through `origin` with normal
+    /// `normal` (Sutherland–Hodgman clip against one plane). `None` if nothing remains.
+    pub fn clip_to_halfspace(&self, origin: DVec3, normal: DVec3) -> Option<Vec<DVec3>> {
+        clip_to_halfspace(&self.vertices, origin, normal)
+    }
+}
+
+/// Sutherland–Hodgman clip of a convex vertex loop against the half-space
+/// `(p - origin) · normal >= 0`. Returns `None` when fewer than three vertices remain.
+pub fn clip_to_halfspace(vertices: &[DVec3], origin: DVec3, normal: DVec3) -> Option<Vec<DVec3>> {
+    let d: Vec<f64> = vertices.iter().map(|v| (*v - origin).dot(normal)).collect();
+    if d.iter().all(|&x| x >= 0.0) {
+        return Some(vertices.to_vec());
+    }
+    if d.iter().all(|&x| x <= 0.0) {
+        return None;
+    }
+    let n = vertices.len();
+    let mut out = Vec::with_capacity(n + 1);
+    for i in 0..n {
+        let j = (i + 1) % n;
+        let (a, b) = (vertices[i], vertices[j]);
+        let (da, db) = (d[i], d[j]);
+        if da >= 0.0 {
+            out.push(a);
+        }
+        if (da > 0.0 && db < 0.0) || (da < 0.0 && db > 0.0) {
+            let t = da / (da - db);
+            out.push(a + (b - a) * t);
+        }
+    }
+    (out.len() >= 3).then_some(out)
+}
+
+/// Newell's method: (unit normal, area) of a planar polygon loop.
+pub fn newell(vertices: &[DVec3]) -> (DVec3, f64) {
+    let mut n = DVec3::ZERO;
+    let c = vertices[0];
+    for i in 0..vertices.len() {
+        let a = vertices[i] - c;
+        let b = vertices[(i + 1) % vertices.len()] - c;
+        n += a.cross(b);
+    }
+    let len = n.length();
+    if len > 0.0 {
+        (n / len, 0.5 * len)
+    } else {
+        (DVec3::ZERO, 0.0)
+    }
+}
+
+fn check_vertices(vertices: Vec<DVec3>) -> Result<Vec<DVec3>, GeometryError> {
+    for v in &vertices {
+        if !v.is_finite() {
+            return Err(GeometryError::NonFinite);
+        }
+        let m = v.abs().max_element();
+        if m > COORDINATE_LIMIT {
+            return Err(GeometryError::OutOfRange {
+                value: m,
+                limit: COORDINATE_LIMIT,
+            });
+        }
+    }
+    let mut out: Vec<DVec3> = Vec::with_capacity(vertices.len());
+    for v in vertices {
+        if out.last() != Some(&v) {
+            out.push(v);
+        }
+    }
+    while out.len() > 1 && out.first() == out.last() {
+        out.pop();
+    }
+    if out.len() < 3 {
+        return Err(GeometryError::TooFewVertices(out.len()));
+    }
+    Ok(out)
+}
+
+fn diameter(vertices: &[DVec3]) -> f64 {
+    let mut d: f64 = 0.0;
+    for (i, a) in vertices.iter().enumerate() {
+        for b in &vertices[i + 1..] {
+            d = d.max(a.distance(*b));
+        }
+    }
+    d
+}
+
+fn plane_deviation(vertices: &[DVec3], normal: DVec3) -> f64 {
+    let centre = vertices.iter().copied().sum::<DVec3>() / vertices.len() as f64;
+    vertices
+        .iter()
+        .map(|v| (*v - centre).dot(normal).abs())
+        .fold(0.0, f64::max)
+}
+
+fn is_convex(vertices: &[DVec3], normal: DVec3) -> bool {
+    let n = vertices.len();
+    let scale = diameter(vertices);
+    for i in 0..n {
+        let a = vertices[i];
+        let b = vertices[(i + 1) % n];
+        let c = vertices[(i + 2) % n];
+        let turn = (b - a).cross(c - b).dot(normal);
+        // Collinear consecutive vertices (turn ~ 0) are allowed: they are hanging vertices.
+        if turn < -1e-12 * scale * scale {
+            return false;
+        }
+    }
+    true
+}
+
+/// Turns an input face into valid polygons: convex planar faces pass through; a non-planar
+/// quad is split along its shorter diagonal into two triangles; a planar non-convex face is
+/// split into triangles by ear clipping. Anything else (non-planar with more than four
+/// vertices) is rejected.
+pub fn split_into_convex(vertices: Vec<DVec3>) -> Result<Vec<Polygon>, GeometryError> {
+    match Polygon::new(vertices.clone()) {
+        Ok(p) => Ok(vec![p]),
+        Err(GeometryError::NonPlanar { deviation }) => {
+            let v = check_vertices(vertices)?;
+            if v.len() != 4 {
+                return Err(GeometryError::NonPlanar { deviation });
+            }
+            let (a, b) = if v[0].distance(v[2]) <= v[1].distance(v[3]) {
+                ([v[0], v[1], v[2]], [v[0], v[2], v[3]])
+            } else {
+                ([v[0], v[1], v[3]], [v[1], v[2], v[3]])
+            };
+            Ok(vec![Polygon::new(a.to_vec())?, Polygon::new(b.to_vec())?])
+        }
+        Err(GeometryError::NonConvex) => ear_clip(check_vertices(vertices)?),
+        Err(e) => Err(e),
+    }
+}
+
+fn ear_clip(vertices: Vec<DVec3>) -> Result<Vec<Polygon>, GeometryError> {
+    let (normal, _) = newell(&vertices);
+    let mut idx: Vec<usize> = (0..vertices.len()).collect();
+    let mut out = Vec::new();
+    let inside = |p: DVec3, a: DVec3, b: DVec3, c: DVec3| {
+        (b - a).cross(p - a).dot(normal) >= 0.0
+            && (c - b).cross(p - b).dot(normal) >= 0.0
+            && (a - c).cross(p - c).dot(normal) >= 0.0
+    };
+    while idx.len() > 3 {
+        let n = idx.len();
+        let mut clipped = false;
+        for i in 0..n {
+            let (ia, ib, ic) = (idx[(i + n - 1) % n], idx[i], idx[(i + 1) % n]);
+            let (a, b, c) = (vertices[ia], vertices[ib], vertices[ic]);
+            if (b - a).cross(c - b).dot(normal) <= 0.0 {
+                continue;
+            }
+            let blocked = idx
+                .iter()
+                .filter(|&&k| k != ia && k != ib && k != ic)
+                .any(|&k| inside(vertices[k], a, b, c));
+            if !blocked {
+                out.push(Polygon::new(vec![a, b, c])?);
+                idx.remove(i);
+                clipped = true;
+                break;
+            }
+        }
+        if !clipped {
+            return Err(GeometryError::NonConvex);
+        }
+    }
+    out.push(Polygon::new(idx.iter().map(|&k| vertices[k]).collect())?);
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn square() -> Vec<DVec3> {
+        vec![
+            DVec3::new(0.0, 0.0, 0.0),
+            DVec3::new(1.0, 0.0, 0.0),
+            DVec3::new(1.0, 1.0, 0.0),
+            DVec3::new(0.0, 1.0, 0.0),
+        ]
+    }
+
+    #[test]
+    fn unit_square_has_area_one_and_normal_plus_z() {
+        let p = Polygon::new(square()).unwrap();
+        assert!((p.area() - 1.0).abs() < 1e-15);
+        assert!((p.normal() - DVec3::Z).length() < 1e-15);
+        assert!((p.centroid() - DVec3::new(0.5, 0.5, 0.0)).length() < 1e-15);
+    }
+
+    #[test]
+    fn rejects_bad_polygons() {
+        let mut v = square();
+        v[2].x = f64::NAN;
+        assert_eq!(Polygon::new(v), Err(GeometryError::NonFinite));
+        let line = vec![DVec3::ZERO, DVec3::X, DVec3::X * 2.0];
+        assert!(matches!(
+            Polygon::new(line),
+            Err(GeometryError::Degenerate { .. })
+        ));
+        let mut twisted = square();
+        twisted[2].z = 0.1;
+        assert!(matches!(
+            Polygon::new(twisted.clone()),
+            Err(GeometryError::NonPlanar { .. })
+        ));
+        assert_eq!(split_into_convex(twisted).unwrap().len(), 2);
+        assert_eq!(
+            Polygon::new(vec![DVec3::ZERO, DVec3::X]),
+            Err(GeometryError::TooFewVertices(2))
+        );
+    }
+
+    #[test]
+    fn non_convex_is_split_preserving_area() {
+        // An L shape of area 3.
+        let l = vec![
+            DVec3::new(0.0, 0.0, 0.0),
+            DVec3::new(2.0, 0.0, 0.0),
+            DVec3::new(2.0, 1.0, 0.0),
+            DVec3::new(1.0, 1.0, 0.0),
+            DVec3::new(1.0, 2.0, 0.0),
+            DVec3::new(0.0, 2.0, 0.0),
+        ];
+        assert_eq!(Polygon::new(l.clone()), Err(GeometryError::NonConvex));
+        let parts = split_into_convex(l).unwrap();
+        let area: f64 = parts.iter().map(Polygon::area).sum();
+        assert!((area - 3.0).abs() < 1e-12);
+        assert!(parts.iter().all(|p| p.normal().z > 0.99));
+    }
+
+    #[test]
+    fn clipping_keeps_front_part() {
+        let p = Polygon::new(square()).unwrap();
+        let clipped = p
+            .clip_to_halfspace(DVec3::new(0.25, 0.0, 0.0), DVec3::X)
+            .unwrap();
+        let (_, area) = newell(&clipped);
+        assert!((area - 0.75).abs() < 1e-15);
+        assert!(p.clip_to_halfspace(DVec3::new(2.0, 0.0, 0.0), DVec3::X).is_none());
+    }
+}

@@ -1,0 +1,19 @@
+//! radiosity: physically based diffuse global illumination by the radiosity method.
+//!
+//! The pipeline is the architecture; data flows one way:
+//!
+//! ```text
+//! Scene ──mesh──▶ Mesh ──formfactor──▶ coupling ──solve──▶ Solution ──render / report──▶ image, JSON
+//! ```
+//!
+//! Units: lengths in metres, emitted radiance L_e in W·m⁻²·sr⁻¹, radiosity, exitance and
+//! irradiance in W·m⁻², power in W.
+
+pub mod accel;
+pub mod formfactor;
+pub mod geometry;
+pub mod mesh;
+pub mod progress;
+pub mod report;
+pub mod scene;
+pub mod solve;

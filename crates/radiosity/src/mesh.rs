@@ -1,0 +1,532 @@
+//! Meshing: each surface is divided into patches, and each patch into elements.
+//!
+//! This is the two-level substructuring of Cohen, Greenberg, Immel & Brock (1986), "An
+//! efficient radiosity approach for realistic image synthesis": patches are the coarse
+//! sources of light, elements the fine receivers on which radiosity is resolved and
+//! displayed. With `patch_subdivision = 1` every element is its own patch and the system is
+//! the plain element-to-element one.
+//!
+//! Quads are divided on a bilinear lattice, triangles (and the fan triangles of n-gons) on a
+//! barycentric lattice, so elements of one surface share their vertices: the display mesh has
+//! no cracks inside a surface.
+
+use crate::geometry::Polygon;
+use crate::scene::{Scene, SurfaceId};
+use glam::DVec3;
+use serde::{Deserialize, Serialize};
+use std::collections::HashMap;
+use std::ops::Range;
+
+/// Index of an element in [`Mesh::elements`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+pub struct ElementId(pub u32);
+
+/// Index of a patch in [`Mesh::patches`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+pub struct PatchId(pub u32);
+
+/// The largest mesh we agree to build (elements); beyond it memory and time are absurd here.
+pub const MAX_ELEMENTS: usize = 4_000_000;
+
+/// How finely to mesh.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MeshOptions {
+    /// Maximum element edge length in metres; overrides `elements` when set.
+    pub max_element_size: Option<f64>,
+    /// Approximate total element count (used when `max_element_size` is `None`).
+    pub elements: usize,
+    /// Elements per patch edge (a patch holds about this squared many elements).
+    pub patch_subdivision: u32,
+}
+
+impl Default for MeshOptions {
+    fn default() -> Self {
+        Self {
+            max_element_size: None,
+            elements: 4000,
+            patch_subdivision: 3,
+        }
+    }
+}
+
+/// Why a mesh could not be built.
+#[derive(Debug, thiserror::Error)]
+pub enum MeshError {
+    #[error("element size must be a positive finite length in metres, got {0}")]
+    BadElementSize(f64),
+    #[error("element count must be at least 1, got {0}")]
+    BadElementCount(usize),
+    #[error("patch subdivision must be between 1 and 64, got {0}")]
+    BadPatchSubdivision(u32),
+    #[error("meshing would create about {estimate} elements (limit {limit}); use a larger element size")]
+    TooManyElements { estimate: usize, limit: usize },
+    #[error("the scene has no surfaces")]
+    EmptyScene,
+}
+
+/// A receiving element: a small convex polygon of one surface.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Element {
+    pub surface: u32,
+    pub patch: PatchId,
+    /// Indices into [`Mesh::vertices`], counter-clockwise seen from the front (3 or 4).
+    pub corners: Vec<u32>,
+    pub centre: DVec3,
+    pub normal: DVec3,
+    /// Area in m².
+    pub area: f64,
+}
+
+/// A shooting patch: a convex polygon made of whole elements of one surface.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Patch {
+    pub surface: u32,
+    pub polygon: Polygon,
+    /// The elements making up this patch (contiguous).
+    pub elements: Range<u32>,
+}
+
+/// Per-surface material data the solver needs, copied out of the scene.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SurfaceData {
+    /// Index into [`Mesh::objects`].
+    pub object: u32,
+    /// Reflectance ρ per channel.
+    pub reflectance: [f64; 3],
+    /// Emitted exitance E = π·L_e per channel, W·m⁻².
+    pub exitance: [f64; 3],
+}
+
+/// The meshed scene: vertices, elements, patches and per-surface material data.
+#[derive(Debug, Clone)]
+pub struct Mesh {
+    pub vertices: Vec<DVec3>,
+    pub elements: Vec<Element>,
+    pub patches: Vec<Patch>,
+    pub surfaces: Vec<SurfaceData>,
+    /// Object names, as in the scene.
+    pub objects: Vec<String>,
+    /// The original surface polygons (for visibility and display), indexed like `surfaces`.
+    pub surface_polygons: Vec<Polygon>,
+}
+
+impl Mesh {
+    /// Meshes every surface of the scene.
+    pub fn build(scene: &Scene, options: &MeshOptions) -> Result<Mesh, MeshError> {
+        if scene.surfaces.is_empty() {
+            return Err(MeshError::EmptyScene);
+        }
+        if !(1..=64).contains(&options.patch_subdivision) {
+            return Err(MeshError::BadPatchSubdivision(options.patch_subdivision));
+        }
+        let size = match options.max_element_size {
+            Some(h) if h.is_finite() && h > 0.0 => h,
+            Some(h) => return Err(MeshError::BadElementSize(h)),
+            None => {
+                if options.elements == 0 {
+                    return Err(MeshError::BadElementCount(0));
+                }
+                if options.elements > MAX_ELEMENTS {
+                    return Err(MeshError::TooManyElements {
+                        estimate: options.elements,
+                        limit: MAX_ELEMENTS,
+                    });
+                }
+                size_for_count(scene, options.elements)
+            }
+        };
+        let estimate: f64 = scene
+            .surfaces
+            .iter()
+            .map(|s| estimate_elements(&s.polygon, size))
+            .sum();
+        if estimate > MAX_ELEMENTS as f64 {
+            return Err(MeshError::TooManyElements {
+                estimate: estimate.min(usize::MAX as f64) as usize,
+                limit: MAX_ELEMENTS,
+            });
+        }
+
+        let objects = scene.object_names();
+        let mut mesh = Mesh {
+            vertices: Vec::new(),
+            elements: Vec::new(),
+            patches: Vec::new(),
+            surfaces: Vec::new(),
+            objects: objects.clone(),
+            surface_polygons: Vec::new(),
+        };
+        for (index, surface) in scene.surfaces.iter().enumerate() {
+            let material = scene.material(surface);
+            let object = objects.iter().position(|o| *o == surface.object).unwrap_or(0) as u32;
+            mesh.surfaces.push(SurfaceData {
+                object,
+                reflectance: material.reflectance,
+                exitance: material.exitance(),
+            });
+            mesh.surface_polygons.push(surface.polygon.clone());
+            mesh.mesh_surface(
+                SurfaceId(index as u32),
+                &surface.polygon,
+                size,
+                options.patch_subdivision,
+            );
+        }
+        Ok(mesh)
+    }
+
+    /// Number of elements.
+    pub fn len(&self) -> usize {
+        self.elements.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.elements.is_empty()
+    }
+
+    /// The polygon of an element.
+    pub fn element_polygon(&self, e: &Element) -> Polygon {
+        Polygon::new_unchecked(
+            e.corners
+                .iter()
+                .map(|&c| self.vertices[c as usize])
+                .collect(),
+        )
+    }
+
+    /// Reflectance of an element's surface.
+    pub fn reflectance(&self, e: &Element) -> [f64; 3] {
+        self.surfaces[e.surface as usize].reflectance
+    }
+
+    /// Emitted exitance of an element's surface, W·m⁻².
+    pub fn exitance(&self, e: &Element) -> [f64; 3] {
+        self.surfaces[e.surface as usize].exitance
+    }
+
+    /// Area of a patch in m² (sum of its elements).
+    pub fn patch_area(&self, p: &Patch) -> f64 {
+        self.elements[p.elements.start as usize..p.elements.end as usize]
+            .iter()
+            .map(|e| e.area)
+            .sum()
+    }
+
+    fn mesh_surface(&mut self, surface: SurfaceId, polygon: &Polygon, size: f64, sub: u32) {
+        let mut welder = Welder::default();
+        let v = polygon.vertices();
+        if v.len() == 4 {
+            let len_u = v[0].distance(v[1]).max(v[3].distance(v[2]));
+            let len_v = v[0].distance(v[3]).max(v[1].distance(v[2]));
+            let (pu, ku) = split_count(len_u, size, sub);
+            let (pv, kv) = split_count(len_v, size, sub);
+            let (nu, nv) = (pu * ku, pv * kv);
+            let point = |i: u32, j: u32| {
+                let (u, w) = (i as f64 / nu as f64, j as f64 / nv as f64);
+                (1.0 - u) * (1.0 - w) * v[0] + u * (1.0 - w) * v[1] + u * w * v[2] + (1.0 - u) * w * v[3]
+            };
+            for a in 0..pu {
+                for b in 0..pv {
+                    let first = self.elements.len() as u32;
+                    let patch = PatchId(self.patches.len() as u32);
+                    for i in a * ku..(a + 1) * ku {
+                        for j in b * kv..(b + 1) * kv {
+                            let corners = [
+                                point(i, j),
+                                point(i + 1, j),
+                                point(i + 1, j + 1),
+                                point(i, j + 1),
+                            ];
+                            self.push_element(surface, patch, &corners, &mut welder);
+                        }
+                    }
+                    let polygon = Polygon::new_unchecked(vec![
+                        point(a * ku, b * kv),
+                        point((a + 1) * ku, b * kv),
+                        point((a + 1) * ku, (b + 1) * kv),
+                        point(a * ku, (b + 1) * kv),
+                    ]);
+                    self.push_patch(surface, polygon, first);
+                }
+            }
+        } else {
+            // Triangles, and n-gons as a fan of triangles sharing one lattice level so the
+            // diagonals conform (lattice points on a shared diagonal are computed bit-identically).
+            let level_len = polygon
+                .triangles()
+                .flat_map(|t| [t[0].distance(t[1]), t[1].distance(t[2]), t[2].distance(t[0])])
+                .fold(0.0, f64::max);
+            let (m, k) = split_count(level_len, size, sub);
+            let n = m * k;
+            for [a0, b0, c0] in polygon.triangles() {
+                let point = |i: u32, j: u32| {
+                    a0 + (b0 - a0) * (i as f64 / n as f64) + (c0 - a0) * (j as f64 / n as f64)
+                };
+                // Patch triangles at level m, each divided into k² elements.
+                for pi in 0..m {
+                    for pj in 0..m - pi {
+                        let mut patch_tris = vec![[(pi, pj), (pi + 1, pj), (pi, pj + 1)]];
+                        if pj + 1 < m - pi {
+                            patch_tris.push([(pi + 1, pj), (pi + 1, pj + 1), (pi, pj + 1)]);
+                        }
+                        for [pa, pb, pc] in patch_tris {
+                            let first = self.elements.len() as u32;
+                            let patch = PatchId(self.patches.len() as u32);
+                            let lat = |a: u32, b: u32| {
+                                // lattice point pa + a/k (pb - pa) + b/k (pc - pa), in level-n units
+                                let i = (pa.0 * k) as i64
+                                    + a as i64 * (pb.0 as i64 - pa.0 as i64)
+                                    + b as i64 * (pc.0 as i64 - pa.0 as i64);
+                                let j = (pa.1 * k) as i64
+                                    + a as i64 * (pb.1 as i64 - pa.1 as i64)
+                                    + b as i64 * (pc.1 as i64 - pa.1 as i64);
+                                point(i as u32, j as u32)
+                            };
+                            for a in 0..k {
+                                for b in 0..k - a {
+                                    let tri = [lat(a, b), lat(a + 1, b), lat(a, b + 1)];
+                                    self.push_element(surface, patch, &tri, &mut welder);
+                                    if b + 1 < k - a {
+                                        let tri = [lat(a + 1, b), lat(a + 1, b + 1), lat(a, b + 1)];
+                                        self.push_element(surface, patch, &tri, &mut welder);
+                                    }
+                                }
+                            }
+                            let polygon = Polygon::new_unchecked(vec![
+                                point(pa.0 * k, pa.1 * k),
+                                point(pb.0 * k, pb.1 * k),
+                                point(pc.0 * k, pc.1 * k),
+                            ]);
+                            self.push_patch(surface, polygon, first);
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    fn push_element(
+        &mut self,
+        surface: SurfaceId,
+        patch: PatchId,
+        corners: &[DVec3],
+        welder: &mut Welder,
+    ) {
+        let polygon = Polygon::new_unchecked(corners.to_vec());
+        let ids = corners
+            .iter()
+            .map(|p| welder.index(*p, &mut self.vertices))
+            .collect();
+        self.elements.push(Element {
+            surface: surface.0,
+            patch,
+            corners: ids,
+            centre: polygon.centroid(),
+            normal: polygon.normal(),
+            area: polygon.area(),
+        });
+    }
+
+    fn push_patch(&mut self, surface: SurfaceId, polygon: Polygon, first: u32) {
+        self.patches.push(Patch {
+            surface: surface.0,
+            polygon,
+            elements: first..self.elements.len() as u32,
+        });
+    }
+}
+
+/// Splits a length into `patches × per_patch` pieces no longer than `size`.
+fn split_count(length: f64, size: f64, sub: u32) -> (u32, u32) {
+    let elements = ((length / size).ceil() as u32).max(1);
+    let patches = elements.div_ceil(sub).max(1);
+    let per_patch = elements.div_ceil(patches).max(1);
+    (patches, per_patch)
+}
+
+fn estimate_elements(polygon: &Polygon, size: f64) -> f64 {
+    let h = polygon.max_edge() / size;
+    (h.ceil() + 1.0).powi(2) * polygon.vertices().len() as f64
+}
+
+/// Element edge length giving about `count` elements over the scene's total area.
+fn size_for_count(scene: &Scene, count: usize) -> f64 {
+    // Square elements of side h cover the area with A/h² elements, but every polygon rounds
+    // its element counts up; a few bisection steps on the real count correct for that.
+    let area = scene.total_area();
+    let count_for = |h: f64| -> f64 {
+        scene
+            .surfaces
+            .iter()
+            .map(|s| {
+                let v = s.polygon.vertices();
+                if v.len() == 4 {
+                    let lu = v[0].distance(v[1]).max(v[3].distance(v[2]));
+                    let lv = v[0].distance(v[3]).max(v[1].distance(v[2]));
+                    ((lu / h).ceil().max(1.0)) * ((lv / h).ceil().max(1.0))
+                } else {
+                    let l = s.polygon.max_edge();
+                    (l / h).ceil().max(1.0).powi(2) * (v.len() - 2) as f64
+                }
+            })
+            .sum()
+    };
+    let mut lo = (area / count as f64).sqrt() * 0.2;
+    let mut hi = (area / count as f64).sqrt() * 5.0;
+    for _ in 0..40 {
+        let mid = (lo * hi).sqrt();
+        if count_for(mid) > count as f64 {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    hi
+}
+
+/// Shares vertices that are bit-identical within one surface.
+#[derive(Default)]
+struct Welder {
+    map: HashMap<[u64; 3], u32>,
+}
+
+impl Welder {
+    fn index(&mut self, p: DVec3, vertices: &mut Vec<DVec3>) -> u32 {
+        let key = [p.x.to_bits(), p.y.to_bits(), p.z.to_bits()];
+        *self.map.entry(key).or_insert_with(|| {
+            vertices.push(p);
+            (vertices.len() - 1) as u32
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::{Material, MaterialId, Origin, Surface};
+
+    fn scene_with(polys: Vec<Vec<DVec3>>) -> Scene {
+        Scene {
+            name: "t".into(),
+            materials: vec![Material {
+                name: "m".into(),
+                reflectance: [0.5; 3],
+                emission: [0.0; 3],
+            }],
+            surfaces: polys
+                .into_iter()
+                .enumerate()
+                .map(|(i, v)| Surface {
+                    object: format!("o{i}"),
+                    group: String::new(),
+                    material: MaterialId(0),
+                    polygon: Polygon::new(v).unwrap(),
+                    origin: Origin::default(),
+                })
+                .collect(),
+            camera: None,
+        }
+    }
+
+    #[test]
+    fn quad_mesh_conserves_area_and_shares_vertices() {
+        let s = scene_with(vec![vec![
+            DVec3::new(0.0, 0.0, 0.0),
+            DVec3::new(2.0, 0.0, 0.0),
+            DVec3::new(2.0, 1.0, 0.0),
+            DVec3::new(0.0, 1.0, 0.0),
+        ]]);
+        let opts = MeshOptions {
+            max_element_size: Some(0.25),
+            elements: 0,
+            patch_subdivision: 2,
+        };
+        let m = Mesh::build(&s, &opts).unwrap();
+        assert_eq!(m.elements.len(), 8 * 4);
+        assert_eq!(m.vertices.len(), 9 * 5);
+        assert_eq!(m.patches.len(), 4 * 2);
+        let area: f64 = m.elements.iter().map(|e| e.area).sum();
+        assert!((area - 2.0).abs() < 1e-12);
+        for p in &m.patches {
+            assert!((m.patch_area(p) - p.polygon.area()).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn triangle_and_pentagon_meshes_conform() {
+        let s = scene_with(vec![
+            vec![DVec3::ZERO, DVec3::X, DVec3::Y],
+            vec![
+                DVec3::new(0.0, 0.0, 1.0),
+                DVec3::new(1.0, 0.0, 1.0),
+                DVec3::new(1.5, 0.8, 1.0),
+                DVec3::new(0.5, 1.5, 1.0),
+                DVec3::new(-0.5, 0.8, 1.0),
+            ],
+        ]);
+        let opts = MeshOptions {
+            max_element_size: Some(0.1),
+            elements: 0,
+            patch_subdivision: 3,
+        };
+        let m = Mesh::build(&s, &opts).unwrap();
+        for (i, surf) in s.surfaces.iter().enumerate() {
+            let area: f64 = m
+                .elements
+                .iter()
+                .filter(|e| e.surface == i as u32)
+                .map(|e| e.area)
+                .sum();
+            assert!((area - surf.polygon.area()).abs() < 1e-12);
+        }
+        // Euler characteristic of a conforming triangulated disc: V - E + F = 1.
+        for i in 0..2u32 {
+            let els: Vec<_> = m.elements.iter().filter(|e| e.surface == i).collect();
+            let mut verts = std::collections::HashSet::new();
+            let mut edges = std::collections::HashSet::new();
+            for e in &els {
+                for k in 0..e.corners.len() {
+                    let (a, b) = (e.corners[k], e.corners[(k + 1) % e.corners.len()]);
+                    verts.insert(a);
+                    edges.insert((a.min(b), a.max(b)));
+                }
+            }
+            let chi = verts.len() as i64 - edges.len() as i64 + els.len() as i64;
+            assert_eq!(chi, 1, "surface {i} mesh has cracks");
+        }
+    }
+
+    #[test]
+    fn element_count_target_is_close() {
+        let s = scene_with(vec![vec![
+            DVec3::new(0.0, 0.0, 0.0),
+            DVec3::new(1.0, 0.0, 0.0),
+            DVec3::new(1.0, 1.0, 0.0),
+            DVec3::new(0.0, 1.0, 0.0),
+        ]]);
+        let opts = MeshOptions {
+            max_element_size: None,
+            elements: 400,
+            patch_subdivision: 1,
+        };
+        let m = Mesh::build(&s, &opts).unwrap();
+        assert!((m.elements.len() as f64 - 400.0).abs() <= 40.0);
+    }
+
+    #[test]
+    fn absurd_sizes_are_errors() {
+        let s = scene_with(vec![vec![DVec3::ZERO, DVec3::X, DVec3::Y]]);
+        let mut o = MeshOptions {
+            max_element_size: Some(1e-9),
+            ..Default::default()
+        };
+        assert!(matches!(
+            Mesh::build(&s, &o),
+            Err(MeshError::TooManyElements { .. })
+        ));
+        o.max_element_size = Some(f64::NAN);
+        assert!(matches!(Mesh::build(&s, &o), Err(MeshError::BadElementSize(_))));
+        o.max_element_size = Some(-1.0);
+        assert!(matches!(Mesh::build(&s, &o), Err(MeshError::BadElementSize(_))));
+    }
+}

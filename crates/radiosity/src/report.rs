@@ -1,0 +1,166 @@
+//! The solution report: per-object area averages and power totals, in physical units.
+//!
+//! Per object (OBJ `o` name): area (m²), reflectance ρ and emitted exitance E = π·L_e
+//! (W·m⁻², area-averaged), radiosity B and irradiance H (W·m⁻², area-averaged) and absorbed
+//! power Σ(1 − ρ)·H·A (W). Totals: emitted, absorbed and escaped power (W) per channel,
+//! element count, solver, iterations, residual and seconds. Energy balance:
+//! emitted = absorbed + escaped (+ unshot, for an unconverged progressive solution).
+
+use crate::mesh::Mesh;
+use crate::solve::Solution;
+use serde::{Deserialize, Serialize};
+
+/// One object's line in the report.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ObjectReport {
+    pub name: String,
+    /// m²
+    pub area: f64,
+    pub reflectance: [f64; 3],
+    /// W·m⁻²
+    pub emitted_exitance: [f64; 3],
+    /// W·m⁻², area-averaged
+    pub radiosity: [f64; 3],
+    /// W·m⁻², area-averaged
+    pub irradiance: [f64; 3],
+    /// W
+    pub absorbed_power: [f64; 3],
+}
+
+/// Scene-wide totals.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Totals {
+    /// W
+    pub emitted_power: [f64; 3],
+    /// W
+    pub absorbed_power: [f64; 3],
+    /// W: power leaving the scene without landing on any surface.
+    pub escaped_power: [f64; 3],
+    /// W: power still waiting to be shot (progressive solver; 0 otherwise).
+    pub unshot_power: [f64; 3],
+    pub elements: usize,
+    pub patches: usize,
+    pub solver: String,
+    pub form_factor: String,
+    /// Iterations, shots (progressive) or 1 (direct).
+    pub iterations: usize,
+    /// Relative residual (matrix solvers) or unshot power fraction (progressive).
+    pub residual: f64,
+    pub seconds: f64,
+    pub form_factor_seconds: f64,
+}
+
+/// The whole report, as written by `radiosity solve --report`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Report {
+    pub scene: String,
+    pub units: Units,
+    pub objects: Vec<ObjectReport>,
+    pub totals: Totals,
+}
+
+/// The units of the report's quantities, spelled out for readers of the JSON.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Units {
+    pub area: String,
+    pub radiosity: String,
+    pub irradiance: String,
+    pub emitted_exitance: String,
+    pub power: String,
+}
+
+impl Default for Units {
+    fn default() -> Self {
+        Self {
+            area: "m^2".into(),
+            radiosity: "W/m^2".into(),
+            irradiance: "W/m^2".into(),
+            emitted_exitance: "W/m^2".into(),
+            power: "W".into(),
+        }
+    }
+}
+
+impl Report {
+    /// Aggregates a solution by object.
+    pub fn new(scene: &str, mesh: &Mesh, solution: &Solution, form_factor: &str) -> Self {
+        let mut objects: Vec<ObjectReport> = mesh
+            .objects
+            .iter()
+            .map(|name| ObjectReport {
+                name: name.clone(),
+                area: 0.0,
+                reflectance: [0.0; 3],
+                emitted_exitance: [0.0; 3],
+                radiosity: [0.0; 3],
+                irradiance: [0.0; 3],
+                absorbed_power: [0.0; 3],
+            })
+            .collect();
+        for (i, e) in mesh.elements.iter().enumerate() {
+            let s = &mesh.surfaces[e.surface as usize];
+            let o = &mut objects[s.object as usize];
+            let (b, h) = (solution.radiosity[i], solution.irradiance[i]);
+            o.area += e.area;
+            for c in 0..3 {
+                o.reflectance[c] += s.reflectance[c] * e.area;
+                o.emitted_exitance[c] += s.exitance[c] * e.area;
+                o.radiosity[c] += b[c] * e.area;
+                o.irradiance[c] += h[c] * e.area;
+                o.absorbed_power[c] += (1.0 - s.reflectance[c]) * h[c] * e.area;
+            }
+        }
+        for o in &mut objects {
+            for c in 0..3 {
+                o.reflectance[c] /= o.area;
+                o.emitted_exitance[c] /= o.area;
+                o.radiosity[c] /= o.area;
+                o.irradiance[c] /= o.area;
+            }
+        }
+        let mut absorbed = [0.0; 3];
+        for o in &objects {
+            for c in 0..3 {
+                absorbed[c] += o.absorbed_power[c];
+            }
+        }
+        let st = &solution.stats;
+        Report {
+            scene: scene.to_string(),
+            units: Units::default(),
+            objects,
+            totals: Totals {
+                emitted_power: Solution::emitted_power(mesh),
+                absorbed_power: absorbed,
+                escaped_power: solution.escaped_power,
+                unshot_power: solution.unshot_power(mesh),
+                elements: mesh.elements.len(),
+                patches: mesh.patches.len(),
+                solver: st.solver.name().to_string(),
+                form_factor: form_factor.to_string(),
+                iterations: st.iterations,
+                residual: st.residual,
+                seconds: st.seconds,
+                form_factor_seconds: st.form_factor_seconds,
+            },
+        }
+    }
+
+    /// Relative energy-balance error |emitted − absorbed − escaped − unshot| / emitted,
+    /// worst channel.
+    pub fn balance_error(&self) -> f64 {
+        let t = &self.totals;
+        (0..3)
+            .filter(|&c| t.emitted_power[c] > 0.0)
+            .map(|c| {
+                (t.emitted_power[c] - t.absorbed_power[c] - t.escaped_power[c] - t.unshot_power[c]).abs()
+                    / t.emitted_power[c]
+            })
+            .fold(0.0, f64::max)
+    }
+
+    /// Looks up an object by name.
+    pub fn object(&self, name: &str) -> Option<&ObjectReport> {
+        self.objects.iter().find(|o| o.name == name)
+    }
+}

@@ -1,0 +1,149 @@
+//! The scene: planar convex surfaces with Lambertian materials, and a camera.
+//!
+//! Physical conventions (see `tests/reference/README.md`):
+//! - reflectance ρ is the Lambertian albedo per RGB channel (BRDF = ρ/π), 0 ≤ ρ < 1;
+//! - emission is the emitted radiance L_e in W·m⁻²·sr⁻¹, front side only, so the emitted
+//!   exitance (radiosity) is E = π·L_e in W·m⁻²;
+//! - every surface is one-sided: its back is opaque, black and emits nothing.
+//!
+//! Loading from files lives in [`crate::io`]; the built-in Cornell box in [`crate::cornell`].
+
+use crate::geometry::Polygon;
+use glam::DVec3;
+use std::f64::consts::PI;
+
+/// Index of a material in [`Scene::materials`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct MaterialId(pub u32);
+
+/// Index of a surface in [`Scene::surfaces`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct SurfaceId(pub u32);
+
+/// A Lambertian material.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Material {
+    pub name: String,
+    /// Diffuse reflectance ρ per RGB channel (dimensionless, 0 ≤ ρ < 1).
+    pub reflectance: [f64; 3],
+    /// Emitted radiance L_e per RGB channel, W·m⁻²·sr⁻¹ (front side only).
+    pub emission: [f64; 3],
+}
+
+impl Material {
+    /// Emitted exitance E = π·L_e, W·m⁻².
+    pub fn exitance(&self) -> [f64; 3] {
+        self.emission.map(|l| PI * l)
+    }
+
+    /// True when any channel emits.
+    pub fn is_emitter(&self) -> bool {
+        self.emission.iter().any(|&l| l > 0.0)
+    }
+}
+
+/// Where a surface came from, for error messages.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Origin {
+    pub file: Option<String>,
+    pub line: Option<usize>,
+}
+
+/// One planar convex polygon with a material, belonging to a named object.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Surface {
+    /// Object name (OBJ `o`, else `g`); reports aggregate by it.
+    pub object: String,
+    /// Surface group (OBJ `g`), informational.
+    pub group: String,
+    pub material: MaterialId,
+    pub polygon: Polygon,
+    pub origin: Origin,
+}
+
+/// A perspective pinhole camera.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Camera {
+    pub eye: DVec3,
+    pub target: DVec3,
+    pub up: DVec3,
+    /// Vertical field of view in degrees (also horizontal for square images).
+    pub fov_deg: f64,
+}
+
+impl Default for Camera {
+    fn default() -> Self {
+        Self {
+            eye: DVec3::new(0.0, 0.0, -3.0),
+            target: DVec3::ZERO,
+            up: DVec3::Y,
+            fov_deg: 40.0,
+        }
+    }
+}
+
+impl Camera {
+    /// A camera that frames the given bounds from the −z side.
+    pub fn framing(lo: DVec3, hi: DVec3) -> Self {
+        let centre = (lo + hi) * 0.5;
+        let radius = ((hi - lo).length() * 0.5).max(1e-6);
+        let fov_deg: f64 = 40.0;
+        let dist = radius / (fov_deg.to_radians() * 0.5).sin();
+        Self {
+            eye: centre - DVec3::Z * dist,
+            target: centre,
+            up: DVec3::Y,
+            fov_deg,
+        }
+    }
+}
+
+/// A complete scene: materials, surfaces and an optional camera.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Scene {
+    pub name: String,
+    pub materials: Vec<Material>,
+    pub surfaces: Vec<Surface>,
+    pub camera: Option<Camera>,
+}
+
+impl Scene {
+    pub fn material(&self, surface: &Surface) -> &Material {
+        &self.materials[surface.material.0 as usize]
+    }
+
+    /// Axis-aligned bounds of all surfaces.
+    pub fn bounds(&self) -> (DVec3, DVec3) {
+        self.surfaces.iter().fold(
+            (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+            |(lo, hi), s| {
+                let (a, b) = s.polygon.bounds();
+                (lo.min(a), hi.max(b))
+            },
+        )
+    }
+
+    /// The scene's camera, or one framing its bounds.
+    pub fn camera_or_default(&self) -> Camera {
+        self.camera.unwrap_or_else(|| {
+            let (lo, hi) = self.bounds();
+            Camera::framing(lo, hi)
+        })
+    }
+
+    /// Total area in m².
+    pub fn total_area(&self) -> f64 {
+        self.surfaces.iter().map(|s| s.polygon.area()).sum()
+    }
+
+    /// Object names in first-appearance order.
+    pub fn object_names(&self) -> Vec<String> {
+        let mut names: Vec<String> = Vec::new();
+        for s in &self.surfaces {
+            if !names.contains(&s.object) {
+                names.push(s.object.clone());
+            }
+        }
+        names
+    }
+}

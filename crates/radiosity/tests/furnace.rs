@@ -1,0 +1,160 @@
+//! The closed "furnace" cube (tests/reference/furnace.json): in a closed enclosure with
+//! uniform emission E and reflectance ρ every point has B = E / (1 − ρ); with only the floor
+//! emitting, the one-element-per-face system has a known exact answer.
+
+use glam::DVec3;
+use radiosity::formfactor::{FormFactorMethod, Visibility};
+use radiosity::geometry::Polygon;
+use radiosity::mesh::{Mesh, MeshOptions};
+use radiosity::progress::NoProgress;
+use radiosity::report::Report;
+use radiosity::scene::{Material, MaterialId, Origin, Scene, Surface};
+use radiosity::solve::{solve, SolveOptions, SolverKind};
+use serde_json::Value;
+
+fn furnace() -> Value {
+    serde_json::from_str(include_str!("reference/furnace.json")).unwrap()
+}
+
+const FACES: [(&str, [[f64; 3]; 4]); 6] = [
+    ("floor", [[0., 0., 1.], [1., 0., 1.], [1., 0., 0.], [0., 0., 0.]]),
+    ("ceiling", [[0., 1., 0.], [1., 1., 0.], [1., 1., 1.], [0., 1., 1.]]),
+    ("wall_x0", [[0., 0., 0.], [0., 1., 0.], [0., 1., 1.], [0., 0., 1.]]),
+    ("wall_x1", [[1., 0., 1.], [1., 1., 1.], [1., 1., 0.], [1., 0., 0.]]),
+    ("wall_z0", [[0., 0., 0.], [1., 0., 0.], [1., 1., 0.], [0., 1., 0.]]),
+    ("wall_z1", [[0., 1., 1.], [1., 1., 1.], [1., 0., 1.], [0., 0., 1.]]),
+];
+
+/// The unit cube with inward-facing faces; `emits(face)` gives each face's exitance E.
+fn cube(rho: f64, emits: impl Fn(&str) -> f64) -> Scene {
+    let mut materials = Vec::new();
+    let mut surfaces = Vec::new();
+    for (i, (name, v)) in FACES.iter().enumerate() {
+        let e = emits(name);
+        materials.push(Material {
+            name: name.to_string(),
+            reflectance: [rho; 3],
+            emission: [e / std::f64::consts::PI; 3],
+        });
+        surfaces.push(Surface {
+            object: name.to_string(),
+            group: name.to_string(),
+            material: MaterialId(i as u32),
+            polygon: Polygon::new(v.iter().map(|p| DVec3::from_array(*p)).collect()).unwrap(),
+            origin: Origin::default(),
+        });
+    }
+    Scene {
+        name: "furnace".into(),
+        materials,
+        surfaces,
+        camera: None,
+    }
+}
+
+fn run(scene: &Scene, mesh_opts: MeshOptions, solver: SolverKind, tol: f64) -> (Mesh, Report) {
+    let mesh = Mesh::build(scene, &mesh_opts).unwrap();
+    let vis = Visibility::new(&mesh);
+    let ff = FormFactorMethod::Raycast.engine(&mesh, &vis);
+    let opts = SolveOptions {
+        solver,
+        tolerance: tol,
+        ..Default::default()
+    };
+    let sol = solve(&mesh, ff.as_ref(), &opts, &NoProgress).unwrap();
+    let report = Report::new("furnace", &mesh, &sol, "raycast");
+    drop(ff);
+    (mesh, report)
+}
+
+fn per_face(n: usize, sub: u32) -> MeshOptions {
+    MeshOptions {
+        max_element_size: Some(1.0 / n as f64 + 1e-9),
+        elements: 0,
+        patch_subdivision: sub,
+    }
+}
+
+#[test]
+fn uniform_emission_gives_e_over_one_minus_rho_for_every_solver() {
+    let f = furnace();
+    for case in f["cases"].as_array().unwrap() {
+        if case["case"] != "a_uniform_emission" {
+            continue;
+        }
+        let rho = case["rho"].as_f64().unwrap();
+        let expected = case["expected_B_all_faces"].as_f64().unwrap();
+        let scene = cube(rho, |_| case["E"].as_f64().unwrap());
+        for &solver in SolverKind::ALL {
+            for mesh in [per_face(1, 1), per_face(4, 2)] {
+                // Tolerance: the solvers stop at a relative residual (or unshot fraction) of
+                // 1e-9, far below the 1e-6 asked, so what remains is the closure of the form
+                // factors, which is exact for a convex enclosure (the other faces tile each
+                // receiving point's hemisphere) up to rounding.
+                let (mesh, report) = run(&scene, mesh, solver, 1e-9);
+                for o in &report.objects {
+                    for c in 0..3 {
+                        let rel = (o.radiosity[c] - expected).abs() / expected;
+                        assert!(rel < 1e-6, "{solver} {} B={} expected {expected} ({} elements)", o.name, o.radiosity[c], mesh.len());
+                    }
+                }
+                // Energy balance: all emitted power is absorbed, none escapes.
+                assert!(report.balance_error() < 1e-6, "{solver}: balance {}", report.balance_error());
+                assert!(report.totals.escaped_power.iter().all(|e| e.abs() < 1e-6 * report.totals.emitted_power[0]));
+            }
+        }
+    }
+}
+
+#[test]
+fn floor_emitting_cube_matches_the_six_by_six_system() {
+    let f = furnace();
+    for case in f["cases"].as_array().unwrap() {
+        if case["case"] != "b_floor_emits" {
+            continue;
+        }
+        let rho = case["rho"].as_f64().unwrap();
+        let scene = cube(rho, |n| if n == "floor" { 1.0 } else { 0.0 });
+        let (_, report) = run(&scene, per_face(1, 1), SolverKind::Direct, 1e-9);
+        let expected = &case["expected_B_one_element_per_face"];
+        for o in &report.objects {
+            let want = expected[&o.name].as_f64().unwrap();
+            // Tolerance 2e-5 relative: the raycast method integrates each receiving face
+            // with an 8×8 Gauss rule of the exact point-to-polygon form factor; its
+            // error on the adjacent-face form factor (a kernel with a logarithmic edge
+            // singularity) is ~1e-5 relative, and B inherits it.
+            let rel = (o.radiosity[0] - want).abs() / want;
+            assert!(rel < 2e-5, "rho {rho} {}: B={} expected {want} (rel {rel:e})", o.name, o.radiosity[0]);
+        }
+        assert!(report.balance_error() < 1e-6);
+    }
+}
+
+#[test]
+fn floor_emitting_cube_fine_mesh_approaches_the_continuous_answer() {
+    let f = furnace();
+    for case in f["cases"].as_array().unwrap() {
+        if case["case"] != "b_floor_emits" {
+            continue;
+        }
+        let rho = case["rho"].as_f64().unwrap();
+        let scene = cube(rho, |n| if n == "floor" { 1.0 } else { 0.0 });
+        let (mesh, report) = run(&scene, per_face(16, 4), SolverKind::Direct, 1e-9);
+        let cont = &case["mitsuba_face_avg_B_continuous"];
+        let stderr = &case["mitsuba_face_avg_B_continuous_stderr"];
+        let coarse = &case["expected_B_one_element_per_face"];
+        for o in &report.objects {
+            let want = cont[&o.name].as_f64().unwrap();
+            let se = stderr[&o.name].as_f64().unwrap();
+            // Tolerance: 4 Monte Carlo standard errors of the Mitsuba estimate plus 0.3 %
+            // for the remaining discretisation error of a 16×16 mesh whose patches are
+            // 4×4 elements (the 1-element answer differs from the continuous one by 1–6 %,
+            // so this still demands most of that gap be closed).
+            let err = (o.radiosity[0] - want).abs();
+            let tol = 4.0 * se + 3e-3 * want;
+            assert!(err < tol, "rho {rho} {}: B={} continuous {want} ± {se} ({} elements)", o.name, o.radiosity[0], mesh.len());
+            let gap = (coarse[&o.name].as_f64().unwrap() - want).abs();
+            assert!(err < 0.5 * gap + 4.0 * se, "{}: the fine mesh should beat one element per face", o.name);
+        }
+    }
+}
