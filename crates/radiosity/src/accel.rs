@@ -1,27 +1,1226 @@
-//! PLACEHOLDER brute-force (replaced by the BVH helper).
-use glam::Vec3;
+//! Ray casting against triangles: a bounding volume hierarchy for visibility queries.
+//!
+//! The form-factor stage asks two questions millions of times: "is the segment between these
+//! two points blocked?" ([`Bvh::segment_occluded`], [`Bvh::occluded`]) and "what does this ray
+//! hit first?" ([`Bvh::intersect`]). Both are answered by a BVH over the scene's triangles.
+//!
+//! Build: a binary tree by the binned surface area heuristic (Wald 2007, "On fast Construction
+//! of SAH-based Bounding Volume Hierarchies"): a node's split minimises
+//! `C_trav + (A_left·P_left + A_right·P_right) / A_node` over 16 candidate planes per axis,
+//! where `A` is surface area and `P` counts packets of four triangles (tested together), and a
+//! node becomes a leaf when that is no cheaper than testing its own packets. The binary tree is
+//! then collapsed into a 4-wide one (each node adopts its children's children, largest first),
+//! as in Embree (Wald et al. 2014).
+//!
+//! Layout, chosen because incoherent rays are bound by memory latency and branch misses: a
+//! 4-wide node is two cache lines holding its four children's boxes transposed (one SIMD slab
+//! test checks all four, 32 bytes per child); leaves are runs of 4-triangle packets, stored
+//! contiguously in leaf order with coordinates transposed for SIMD. Measured on the
+//! 100k-triangle Cornell box of `benches/bvh.rs`, one thread: binary nodes (32 bytes, siblings
+//! in one cache line) with one triangle per test cast 1.0–1.2 M shadow rays/s, with packets
+//! 1.3 M/s, and 4-wide nodes with packets 2.1 M/s.
+//!
+//! Triangles are double-sided. The ray-triangle test is the watertight test of Woop, Benthin &
+//! Wald 2013 ("Watertight Ray/Triangle Intersection", JCGT 2(1)): a ray through an edge or vertex
+//! shared by two triangles (with bit-identical vertex coordinates) hits at least one of them.
+//! Box tests follow Ize 2013 ("Robust BVH Ray Traversal") to stay conservative under rounding.
+//!
+//! Lengths are in the scene's unit (metres); ray parameters `t` are in units of the ray's
+//! direction vector, which need not be normalised.
+//!
+//! See also: the form-factor stage, which is the main caller.
+
+use glam::{Vec3, Vec3A, Vec4};
+
+/// Triangles tested together by one SIMD ray-triangle test.
+const PACKET: usize = 4;
+/// Candidate split planes per axis are the boundaries between this many bins.
+const BINS: usize = 16;
+/// Leaves never hold more triangles than this (four packets).
+const MAX_LEAF: usize = 16;
+/// Below this depth nodes are split by plain halving, not the SAH, so that pathological inputs
+/// (triangles spaced exponentially, say) cannot make the tree arbitrarily deep.
+const MAX_SAH_DEPTH: usize = 32;
+/// Traversal stack size for any tree: a node pushes at most three children, and halving at
+/// most 2²⁹ triangles down to one packet takes fewer than 32 levels below `MAX_SAH_DEPTH`.
+const STACK: usize = 3 * (MAX_SAH_DEPTH + 32) + 1;
+/// Trees at most this deep (in 4-wide nodes; typical ones have 8–12 levels) get a smaller
+/// stack.
+const SHALLOW_DEPTH: usize = 16;
+/// Bits of a child reference holding a leaf's packet count (0 marks an inner node).
+const COUNT_BITS: u32 = 3;
+const _: () = assert!(MAX_LEAF.div_ceil(PACKET) < 1 << COUNT_BITS);
+/// Cost of one traversal step relative to one packet test, for the SAH. Measured: 2–6 are
+/// equally good on a 100k-triangle Cornell box; 1 (small leaves) is 10–20 % slower.
+const TRAVERSAL_COST: f32 = 3.0;
+/// Subtrees with more triangles than this are built on separate rayon tasks.
+const PARALLEL_BUILD: usize = 8192;
+/// Relative widening `2γ₃` of a box's entry and exit distances (Ize 2013), so that rounding
+/// never culls a true hit.
+const ROBUST_WIDEN: f32 = 2.0 * 3.0 * f32::EPSILON * 0.5 / (1.0 - 3.0 * f32::EPSILON * 0.5);
+
+/// Where a ray first meets the scene: the answer of [`Bvh::intersect`].
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Hit { pub t: f32, pub triangle: u32, pub u: f32, pub v: f32 }
-pub struct Bvh { tris: Vec<[Vec3; 3]> }
+pub struct Hit {
+    /// Ray parameter of the hit: the point is `origin + t * dir`.
+    pub t: f32,
+    /// Index of the triangle in the slice given to [`Bvh::build`].
+    pub triangle: u32,
+    /// Barycentric weight of the triangle's second vertex.
+    pub u: f32,
+    /// Barycentric weight of the third vertex; the point is `(1-u-v)·v0 + u·v1 + v·v2`.
+    pub v: f32,
+}
+
+/// Bounding volume hierarchy over triangles (binned SAH build), for shadow rays and closest hits.
+///
+/// Immutable once built, `Send + Sync`: share one `&Bvh` between rayon threads. Memory: about
+/// 45 bytes per triangle (the input is not kept).
+///
+/// See also: [`Hit`], [`Bvh::segment_occluded`].
+#[derive(Clone)]
+pub struct Bvh {
+    /// The root, which may be a leaf, and its box; every stored node has two to four children.
+    root: Child,
+    bounds: Aabb,
+    nodes: Vec<Node>,
+    /// Leaves' triangles, in leaf order.
+    packets: Vec<Packet>,
+    /// Input index of each lane of `packets`.
+    ids: Vec<[u32; PACKET]>,
+    /// Number of input triangles.
+    len: usize,
+    /// Inner nodes on the longest path from the root to a leaf.
+    depth: usize,
+}
+
+/// A reference to a node or a leaf, packed in 32 bits: `first << COUNT_BITS | count`, where a
+/// leaf is `count` (1 to 7) packets from `Bvh::packets[first]`, and `count` 0 marks an inner
+/// node `Bvh::nodes[first]`.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+struct Child(u32);
+
+impl Child {
+    fn leaf(first: usize, count: usize) -> Self {
+        debug_assert!((1..1 << COUNT_BITS).contains(&count));
+        Child((first as u32) << COUNT_BITS | count as u32)
+    }
+
+    fn inner(index: usize) -> Self {
+        Child((index as u32) << COUNT_BITS)
+    }
+
+    #[inline(always)]
+    fn count(self) -> usize {
+        (self.0 & ((1 << COUNT_BITS) - 1)) as usize
+    }
+
+    #[inline(always)]
+    fn first(self) -> usize {
+        (self.0 >> COUNT_BITS) as usize
+    }
+}
+
+/// A 4-wide node: its children's boxes, transposed so that one SIMD slab test checks all four.
+#[derive(Debug, Clone, Copy)]
+#[repr(C, align(64))]
+struct Node {
+    /// `bounds[0][axis]` holds the four children's minima along `axis`, `bounds[1]` maxima.
+    bounds: [[Vec4; 3]; 2],
+    children: [Child; 4],
+    /// Bit `i` set when child slot `i` is used.
+    used: u32,
+}
+
+/// Four triangles, transposed: `v[vertex][axis]` holds one coordinate of one vertex of each
+/// (lanes). A leaf whose size is not a multiple of four repeats its last triangle.
+#[derive(Debug, Clone, Copy)]
+struct Packet {
+    v: [[Vec4; 3]; 3],
+}
+
+impl Packet {
+    fn new(tris: [&[Vec3; 3]; PACKET]) -> Self {
+        let lanes = |vertex: usize, axis: usize| Vec4::from(tris.map(|t| t[vertex][axis]));
+        Packet {
+            v: [0, 1, 2].map(|vertex| [0, 1, 2].map(|axis| lanes(vertex, axis))),
+        }
+    }
+}
+
+impl std::fmt::Debug for Bvh {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Bvh")
+            .field("triangles", &self.len)
+            .field("packets", &self.packets.len())
+            .field("nodes", &self.nodes.len())
+            .finish()
+    }
+}
+
 impl Bvh {
-    pub fn build(triangles: &[[Vec3; 3]]) -> Bvh { Bvh { tris: triangles.to_vec() } }
-    pub fn len(&self) -> usize { self.tris.len() }
-    pub fn is_empty(&self) -> bool { self.tris.is_empty() }
-    pub fn intersect(&self, o: Vec3, d: Vec3, t_min: f32, t_max: f32) -> Option<Hit> {
+    /// Builds the hierarchy over `triangles` (binned SAH, in parallel for large inputs).
+    ///
+    /// An empty slice gives a hierarchy that nothing hits. Degenerate (zero-area) triangles are
+    /// accepted and never hit. Triangles with non-finite coordinates are accepted, but rays
+    /// near them may or may not report them.
+    ///
+    /// # Panics
+    /// If there are more than 2²⁹ (about 537 million) triangles.
+    pub fn build(triangles: &[[Vec3; 3]]) -> Bvh {
+        use rayon::prelude::*;
+        assert!(
+            triangles.len() <= 1 << (32 - COUNT_BITS),
+            "a BVH holds at most 2^29 triangles"
+        );
+        let mut bvh = Bvh {
+            root: Child::default(),
+            bounds: Aabb::EMPTY,
+            nodes: Vec::new(),
+            packets: Vec::new(),
+            ids: Vec::new(),
+            len: triangles.len(),
+            depth: 0,
+        };
+        if triangles.is_empty() {
+            return bvh;
+        }
+        let mut prims: Vec<Prim> = triangles
+            .par_iter()
+            .enumerate()
+            .with_min_len(4096)
+            .map(|(i, t)| Prim::new(i as u32, t))
+            .collect();
+        let tree = build_node(&mut prims, 0, 0);
+        let order: Vec<u32> = prims.iter().map(|p| p.id).collect();
+        drop(prims);
+        bvh.nodes.reserve(triangles.len() / 8);
+        bvh.packets.reserve(triangles.len() / 3);
+        bvh.ids.reserve(triangles.len() / 3);
+        bvh.bounds = *tree.bounds();
+        (bvh.root, bvh.depth) = bvh.flatten(&tree, triangles, &order);
+        bvh
+    }
+
+    /// Number of triangles.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    /// True when built from no triangles: nothing is ever hit.
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// Any hit with `t` in the open interval `(t_min, t_max)` along `origin + t * dir`?
+    ///
+    /// `dir` need not be normalised; a zero or non-finite `dir` hits nothing. Stops at the first
+    /// hit found, which is not necessarily the closest.
+    pub fn occluded(&self, origin: Vec3, dir: Vec3, t_min: f32, t_max: f32) -> bool {
+        let Some(ray) = Ray::new(origin, dir) else {
+            return false;
+        };
+        let nonempty_range = t_min < t_max; // false when either is NaN
+        if self.is_empty() || !nonempty_range || ray.enter(&self.bounds, t_min, t_max).is_none() {
+            return false;
+        }
+        let range = (Vec4::splat(t_min), Vec4::splat(t_max));
+        // A stack sized for the tree at hand: zeroing a larger one costs 4 % of the ray's time.
+        if self.depth <= SHALLOW_DEPTH {
+            self.occluded_from::<{ 3 * SHALLOW_DEPTH + 1 }>(&ray, range)
+        } else {
+            self.occluded_from::<STACK>(&ray, range)
+        }
+    }
+
+    /// `occluded` after the checks, with a traversal stack of `N` entries.
+    fn occluded_from<const N: usize>(&self, ray: &Ray, range: (Vec4, Vec4)) -> bool {
+        let mut stack = [Child::default(); N];
+        let mut top = 0;
+        let mut child = self.root;
+        loop {
+            if child.count() > 0 {
+                let leaf = &self.packets[child.first()..child.first() + child.count()];
+                if leaf.iter().any(|p| ray.hit(p, range).0 != 0) {
+                    return true;
+                }
+            } else {
+                let node = &self.nodes[child.first()];
+                let (mut hits, _) = ray.enter_node(node, range);
+                if hits != 0 {
+                    // Any blocker will do, so children are taken in slot order: visiting the
+                    // nearest first (as `intersect` does) measured 4 % slower here.
+                    child = node.children[hits.trailing_zeros() as usize];
+                    hits &= hits - 1;
+                    while hits != 0 {
+                        stack[top] = node.children[hits.trailing_zeros() as usize];
+                        top += 1;
+                        hits &= hits - 1;
+                    }
+                    continue;
+                }
+            }
+            if top == 0 {
+                return false;
+            }
+            top -= 1;
+            child = stack[top];
+        }
+    }
+
+    /// Closest hit with `t` in the open interval `(t_min, t_max)` along `origin + t * dir`.
+    ///
+    /// `dir` need not be normalised; a zero or non-finite `dir` hits nothing. Ties between
+    /// triangles at exactly the same `t` go to either.
+    pub fn intersect(&self, origin: Vec3, dir: Vec3, t_min: f32, t_max: f32) -> Option<Hit> {
+        let ray = Ray::new(origin, dir)?;
+        let nonempty_range = t_min < t_max; // false when either is NaN
+        if self.is_empty() || !nonempty_range {
+            return None;
+        }
+        ray.enter(&self.bounds, t_min, t_max)?;
+        let range = (Vec4::splat(t_min), Vec4::splat(t_max));
+        if self.depth <= SHALLOW_DEPTH {
+            self.intersect_from::<{ 3 * SHALLOW_DEPTH + 1 }>(&ray, range)
+        } else {
+            self.intersect_from::<STACK>(&ray, range)
+        }
+    }
+
+    /// `intersect` after the checks, with a traversal stack of `N` entries.
+    fn intersect_from<const N: usize>(&self, ray: &Ray, mut range: (Vec4, Vec4)) -> Option<Hit> {
         let mut best: Option<Hit> = None;
-        for (i, t) in self.tris.iter().enumerate() {
-            let e1 = t[1] - t[0]; let e2 = t[2] - t[0];
-            let p = d.cross(e2); let det = e1.dot(p);
-            if det.abs() < 1e-20 { continue; }
-            let inv = 1.0 / det; let s = o - t[0]; let u = s.dot(p) * inv;
-            if !(0.0..=1.0).contains(&u) { continue; }
-            let q = s.cross(e1); let v = d.dot(q) * inv;
-            if v < 0.0 || u + v > 1.0 { continue; }
-            let tt = e2.dot(q) * inv;
-            if tt > t_min && tt < t_max && best.is_none_or(|b| tt < b.t) { best = Some(Hit { t: tt, triangle: i as u32, u, v }); }
+        // Pending far children with their entry distance, to skip those beyond a closer hit.
+        let mut stack = [(Child::default(), 0f32); N];
+        let mut top = 0;
+        let mut child = self.root;
+        loop {
+            if child.count() > 0 {
+                let (start, end) = (child.first(), child.first() + child.count());
+                for (packet, ids) in self.packets[start..end].iter().zip(&self.ids[start..end]) {
+                    let (mut lanes, t, u, v) = ray.hit(packet, range);
+                    while lanes != 0 {
+                        let lane = lanes.trailing_zeros() as usize;
+                        lanes &= lanes - 1;
+                        if t[lane] < range.1.x {
+                            range.1 = Vec4::splat(t[lane]);
+                            best = Some(Hit {
+                                t: t[lane],
+                                triangle: ids[lane],
+                                u: u[lane],
+                                v: v[lane],
+                            });
+                        }
+                    }
+                }
+            } else {
+                let node = &self.nodes[child.first()];
+                let (mut hits, enter) = ray.enter_node(node, range);
+                if hits != 0 {
+                    // Push the farther children farthest first, so that they pop nearest first.
+                    let base = top;
+                    while hits != 0 {
+                        let lane = hits.trailing_zeros() as usize;
+                        hits &= hits - 1;
+                        let mut at = top;
+                        while at > base && stack[at - 1].1 < enter[lane] {
+                            stack[at] = stack[at - 1];
+                            at -= 1;
+                        }
+                        stack[at] = (node.children[lane], enter[lane]);
+                        top += 1;
+                    }
+                    top -= 1;
+                    child = stack[top].0;
+                    continue;
+                }
+            }
+            loop {
+                if top == 0 {
+                    return best;
+                }
+                top -= 1;
+                let (next, enter) = stack[top];
+                if enter < range.1.x {
+                    child = next;
+                    break;
+                }
+            }
+        }
+    }
+
+    /// Is the open segment `a`–`b` blocked by any triangle?
+    ///
+    /// Hits within `eps` of either end, as a fraction of the segment's length (1e-4 is typical),
+    /// are ignored, so the triangles the end points lie on do not block. A zero-length segment
+    /// is never blocked.
+    pub fn segment_occluded(&self, a: Vec3, b: Vec3, eps: f32) -> bool {
+        self.occluded(a, b - a, eps, 1.0 - eps)
+    }
+
+    /// Appends `node` to the 4-wide tree: its node before its descendants, its leaves'
+    /// triangles to `packets`. Returns the reference to it and its depth in inner nodes.
+    fn flatten(
+        &mut self,
+        node: &BuildNode,
+        triangles: &[[Vec3; 3]],
+        order: &[u32],
+    ) -> (Child, usize) {
+        match node {
+            BuildNode::Leaf { first, count, .. } => {
+                let start = self.packets.len();
+                let leaf = &order[*first as usize..(*first + *count) as usize];
+                for chunk in leaf.chunks(PACKET) {
+                    let ids: [u32; PACKET] =
+                        std::array::from_fn(|lane| chunk[lane.min(chunk.len() - 1)]);
+                    self.packets
+                        .push(Packet::new(ids.map(|i| &triangles[i as usize])));
+                    self.ids.push(ids);
+                }
+                (Child::leaf(start, self.packets.len() - start), 0)
+            }
+            BuildNode::Inner { children, .. } => {
+                // Adopt grandchildren, largest box first, until there are four children.
+                let mut adopted: Vec<&BuildNode> = children.iter().collect();
+                while adopted.len() < 4 {
+                    let largest = adopted
+                        .iter()
+                        .enumerate()
+                        .filter(|(_, c)| matches!(c, BuildNode::Inner { .. }))
+                        .max_by(|(_, a), (_, b)| {
+                            a.bounds().half_area().total_cmp(&b.bounds().half_area())
+                        })
+                        .map(|(i, _)| i);
+                    let Some(i) = largest else { break };
+                    let BuildNode::Inner { children, .. } = adopted[i] else {
+                        unreachable!("filtered on Inner")
+                    };
+                    adopted.splice(i..=i, children.iter());
+                }
+                let index = self.nodes.len();
+                self.nodes.push(Node {
+                    bounds: [[Vec4::ZERO; 3]; 2],
+                    children: [Child::default(); 4],
+                    used: 0,
+                });
+                let mut node = self.nodes[index];
+                let mut depth = 0;
+                for (slot, c) in adopted.into_iter().enumerate() {
+                    let b = c.bounds();
+                    for axis in 0..3 {
+                        node.bounds[0][axis][slot] = b.min[axis];
+                        node.bounds[1][axis][slot] = b.max[axis];
+                    }
+                    let (child, child_depth) = self.flatten(c, triangles, order);
+                    node.children[slot] = child;
+                    node.used |= 1 << slot;
+                    depth = depth.max(child_depth);
+                }
+                self.nodes[index] = node;
+                (Child::inner(index), depth + 1)
+            }
+        }
+    }
+}
+
+/// A ray with what every box and triangle test needs precomputed.
+struct Ray {
+    origin: Vec3A,
+    /// `1 / dir`, with zeros replaced by huge values of the same sign so no NaN arises.
+    inv_dir: Vec3A,
+    /// `origin` and `inv_dir`, each coordinate splatted over four lanes.
+    origin_4: [Vec4; 3],
+    inv_dir_4: [Vec4; 3],
+    /// Per axis, which of a box's planes the ray meets first: 0 the minimum, 1 the maximum.
+    near_side: [usize; 3],
+    /// Axes permuted so that `kz` is the direction's dominant one (`[kx, ky, kz]`).
+    axes: [usize; 3],
+    /// The origin's coordinate along `kx`, `ky`, `kz`, splatted.
+    origin_k: [Vec4; 3],
+    /// Shear taking the ray to the +z axis: `dir[kx]/dir[kz]`, `dir[ky]/dir[kz]`, `1/dir[kz]`,
+    /// splatted.
+    shear: [Vec4; 3],
+}
+
+impl Ray {
+    fn new(origin: Vec3, dir: Vec3) -> Option<Self> {
+        if !dir.is_finite() || !origin.is_finite() || dir == Vec3::ZERO {
+            return None;
+        }
+        let inv = dir.recip();
+        let inv_dir = Vec3::select(
+            inv.is_finite_mask(),
+            inv,
+            Vec3::splat(f32::MAX).copysign(dir),
+        );
+        let abs = dir.abs();
+        let kz = if abs.x >= abs.y && abs.x >= abs.z {
+            0
+        } else if abs.y >= abs.z {
+            1
+        } else {
+            2
+        };
+        let mut kx = (kz + 1) % 3;
+        let mut ky = (kx + 1) % 3;
+        // Keep the winding, so that `u`, `v` and the sign of the determinant mean the same.
+        if dir[kz] < 0.0 {
+            std::mem::swap(&mut kx, &mut ky);
+        }
+        let axes = [kx, ky, kz];
+        let shear = [dir[kx] / dir[kz], dir[ky] / dir[kz], 1.0 / dir[kz]];
+        Some(Ray {
+            origin: origin.into(),
+            inv_dir: inv_dir.into(),
+            origin_4: [0, 1, 2].map(|a| Vec4::splat(origin[a])),
+            inv_dir_4: [0, 1, 2].map(|a| Vec4::splat(inv_dir[a])),
+            near_side: [0, 1, 2].map(|a| usize::from(inv_dir[a] < 0.0)),
+            axes,
+            origin_k: axes.map(|a| Vec4::splat(origin[a])),
+            shear: shear.map(Vec4::splat),
+        })
+    }
+
+    /// Entry distance into `bounds` if the ray meets it within `(t_min, t_max)`.
+    fn enter(&self, bounds: &Aabb, t_min: f32, t_max: f32) -> Option<f32> {
+        let lo = (bounds.min - self.origin) * self.inv_dir;
+        let hi = (bounds.max - self.origin) * self.inv_dir;
+        let enter = lo.min(hi).max_element().max(t_min);
+        let exit = lo.max(hi).min_element().min(t_max);
+        // Widened away from each other whatever their signs (`t_min` may be negative). An
+        // infinite entry (or exit at minus infinity) turns into NaN here and the box is missed,
+        // as it should be: widening first would let `max(t_min)` swallow the NaN.
+        let enter_w = enter - enter.abs() * ROBUST_WIDEN;
+        let exit_w = exit + exit.abs() * ROBUST_WIDEN;
+        (enter_w <= exit_w).then_some(enter)
+    }
+
+    /// Slab test of the four boxes of `node` against the ray within `range` (`t_min`, `t_max`,
+    /// splatted). Returns the mask of children hit and their entry distances.
+    #[inline(always)]
+    fn enter_node(&self, node: &Node, range: (Vec4, Vec4)) -> (u32, Vec4) {
+        let mut enter = range.0;
+        let mut exit = range.1;
+        for a in 0..3 {
+            let near = self.near_side[a];
+            let t_near = (node.bounds[near][a] - self.origin_4[a]) * self.inv_dir_4[a];
+            let t_far = (node.bounds[1 - near][a] - self.origin_4[a]) * self.inv_dir_4[a];
+            enter = enter.max(t_near);
+            exit = exit.min(t_far);
+        }
+        // As in `enter`: NaN from an infinite entry or exit compares false, a miss.
+        let enter_w = enter - enter.abs() * ROBUST_WIDEN;
+        let exit_w = exit + exit.abs() * ROBUST_WIDEN;
+        (enter_w.cmple(exit_w).bitmask() & node.used, enter)
+    }
+
+    /// Woop, Benthin & Wald 2013, double-sided, on the four triangles of `packet` at once:
+    /// returns the mask of lanes hit with `t` in `range` (open), and `t`, `u`, `v` per lane.
+    ///
+    /// In coordinates where the ray runs from the origin along +z, the 2D edge functions
+    /// `U = Cx·By − Cy·Bx` (and cyclic) are the barycentric weights times twice the area; the
+    /// ray is inside when all three have one sign. A shared edge yields exactly negated values
+    /// in its two triangles, which is what makes the test watertight.
+    #[inline(always)]
+    fn hit(&self, packet: &Packet, range: (Vec4, Vec4)) -> (u32, Vec4, Vec4, Vec4) {
+        let [kx, ky, kz] = self.axes;
+        let [sx, sy, sz] = self.shear;
+        let [ox, oy, oz] = self.origin_k;
+        let [a, b, c] = &packet.v;
+        // Each vertex relative to the origin, sheared so that the ray runs along +z.
+        let (az, bz, cz) = (a[kz] - oz, b[kz] - oz, c[kz] - oz);
+        let (ax, bx, cx) = (
+            a[kx] - ox - sx * az,
+            b[kx] - ox - sx * bz,
+            c[kx] - ox - sx * cz,
+        );
+        let (ay, by, cy) = (
+            a[ky] - oy - sy * az,
+            b[ky] - oy - sy * bz,
+            c[ky] - oy - sy * cz,
+        );
+        let mut u = cx * by - cy * bx;
+        let mut v = ax * cy - ay * cx;
+        let mut w = bx * ay - by * ax;
+        let zero = u.cmpeq(Vec4::ZERO) | v.cmpeq(Vec4::ZERO) | w.cmpeq(Vec4::ZERO);
+        if zero.any() {
+            // Only the triangles with a zero, as in the paper: a neighbour must see the same
+            // values for a shared edge unless the ray passes exactly through it.
+            let exact = edge_functions_f64([ax, bx, cx], [ay, by, cy]);
+            u = Vec4::select(zero, exact[0], u);
+            v = Vec4::select(zero, exact[1], v);
+            w = Vec4::select(zero, exact[2], w);
+        }
+        let negative = u.cmplt(Vec4::ZERO) | v.cmplt(Vec4::ZERO) | w.cmplt(Vec4::ZERO);
+        let positive = u.cmpgt(Vec4::ZERO) | v.cmpgt(Vec4::ZERO) | w.cmpgt(Vec4::ZERO);
+        // Inside: the three edge functions never have both signs.
+        let inside = (negative & positive).bitmask() ^ 0xf;
+        if inside == 0 {
+            return (0, Vec4::ZERO, Vec4::ZERO, Vec4::ZERO);
+        }
+        let det = u + v + w;
+        let t = (u * az + v * bz + w * cz) * sz / det;
+        // A zero determinant makes `t` NaN or infinite, which fails the range test.
+        let hit = inside & (t.cmpgt(range.0) & t.cmplt(range.1)).bitmask();
+        (hit, t, v / det, w / det)
+    }
+}
+
+/// The edge functions again in `f64`, where the products are exact, so a zero is a true zero
+/// (the ray passes exactly through an edge or vertex) and the signs are right.
+#[cold]
+fn edge_functions_f64(x: [Vec4; 3], y: [Vec4; 3]) -> [Vec4; 3] {
+    let x = x.map(|v| v.to_array().map(f64::from));
+    let y = y.map(|v| v.to_array().map(f64::from));
+    let edge = |p: usize, q: usize| {
+        Vec4::from_array(std::array::from_fn(|lane| {
+            (x[q][lane] * y[p][lane] - y[q][lane] * x[p][lane]) as f32
+        }))
+    };
+    // Same products and order as in `Ray::hit`: U from (B, C), V from (C, A), W from (A, B).
+    [edge(1, 2), edge(2, 0), edge(0, 1)]
+}
+
+/// A triangle as the builder sees it: its box, the box's centre and its input index. The
+/// builder sorts these themselves, rather than indices into them, so that its passes over a
+/// node's triangles read memory in order.
+struct Prim {
+    min: Vec3A,
+    max: Vec3A,
+    centre: Vec3A,
+    id: u32,
+}
+
+impl Prim {
+    fn new(id: u32, v: &[Vec3; 3]) -> Self {
+        let min = Vec3A::from(v[0].min(v[1]).min(v[2]));
+        let max = Vec3A::from(v[0].max(v[1]).max(v[2]));
+        Prim {
+            min,
+            max,
+            centre: (min + max) * 0.5,
+            id,
+        }
+    }
+}
+
+/// An axis-aligned box being grown.
+#[derive(Debug, Clone, Copy)]
+struct Aabb {
+    min: Vec3A,
+    max: Vec3A,
+}
+
+impl Aabb {
+    const EMPTY: Aabb = Aabb {
+        min: Vec3A::splat(f32::INFINITY),
+        max: Vec3A::splat(f32::NEG_INFINITY),
+    };
+
+    fn grow(&mut self, min: Vec3A, max: Vec3A) {
+        self.min = self.min.min(min);
+        self.max = self.max.max(max);
+    }
+
+    fn union(self, other: Aabb) -> Aabb {
+        Aabb {
+            min: self.min.min(other.min),
+            max: self.max.max(other.max),
+        }
+    }
+
+    /// Half the surface area (the SAH only compares areas).
+    fn half_area(&self) -> f32 {
+        let d = (self.max - self.min).max(Vec3A::ZERO);
+        d.x * d.y + d.y * d.z + d.z * d.x
+    }
+}
+
+/// The binary tree as built, before it is collapsed into 4-wide nodes.
+enum BuildNode {
+    Leaf {
+        bounds: Aabb,
+        first: u32,
+        count: u32,
+    },
+    Inner {
+        bounds: Aabb,
+        children: Box<[BuildNode; 2]>,
+    },
+}
+
+impl BuildNode {
+    fn bounds(&self) -> &Aabb {
+        match self {
+            BuildNode::Leaf { bounds, .. } | BuildNode::Inner { bounds, .. } => bounds,
+        }
+    }
+}
+
+/// Number of packets needed for `n` triangles: the SAH's unit of intersection cost.
+fn packets(n: u32) -> f32 {
+    n.div_ceil(PACKET as u32) as f32
+}
+
+/// Builds the subtree over `prims` (a window starting at `first` of the full array),
+/// reordering them so that every leaf is a contiguous run.
+fn build_node(prims: &mut [Prim], first: u32, depth: usize) -> BuildNode {
+    let mut bounds = Aabb::EMPTY;
+    let mut centres = Aabb::EMPTY;
+    for p in prims.iter() {
+        bounds.grow(p.min, p.max);
+        centres.grow(p.centre, p.centre);
+    }
+    let n = prims.len();
+    let leaf = BuildNode::Leaf {
+        bounds,
+        first,
+        count: n as u32,
+    };
+    // One packet is as cheap as it gets.
+    if n <= PACKET {
+        return leaf;
+    }
+    if depth >= MAX_SAH_DEPTH {
+        return if n <= MAX_LEAF {
+            leaf
+        } else {
+            split(prims, first, depth, n / 2, bounds)
+        };
+    }
+
+    let extent = centres.max - centres.min;
+    // Triangles counted, and their bounds grown, per bin and axis.
+    let mut bins = [[(0u32, Aabb::EMPTY); BINS]; 3];
+    let scale = Vec3A::select(extent.cmpgt(Vec3A::ZERO), BINS as f32 / extent, Vec3A::ZERO);
+    let bin_of = |c: Vec3A| -> [usize; 3] {
+        // `as usize` saturates (and maps NaN to 0); `min` catches the top edge.
+        let b = (c - centres.min) * scale;
+        [
+            (b.x as usize).min(BINS - 1),
+            (b.y as usize).min(BINS - 1),
+            (b.z as usize).min(BINS - 1),
+        ]
+    };
+    for p in prims.iter() {
+        for (axis, b) in bin_of(p.centre).into_iter().enumerate() {
+            let bin = &mut bins[axis][b];
+            bin.0 += 1;
+            bin.1.grow(p.min, p.max);
+        }
+    }
+
+    // Sweep each axis from the right, then from the left, costing every plane.
+    let mut best: Option<(f32, usize, usize)> = None;
+    for (axis, bins) in bins.iter().enumerate() {
+        let spread = extent[axis] > 0.0; // false for NaN
+        if !spread {
+            continue;
+        }
+        let mut right_cost = [0.0f32; BINS];
+        let mut acc = Aabb::EMPTY;
+        let mut count = 0;
+        for b in (1..BINS).rev() {
+            acc = acc.union(bins[b].1);
+            count += bins[b].0;
+            right_cost[b] = if count > 0 {
+                acc.half_area() * packets(count)
+            } else {
+                f32::INFINITY
+            };
+        }
+        let mut acc = Aabb::EMPTY;
+        let mut count = 0;
+        for b in 1..BINS {
+            acc = acc.union(bins[b - 1].1);
+            count += bins[b - 1].0;
+            if count == 0 {
+                continue;
+            }
+            let cost = acc.half_area() * packets(count) + right_cost[b];
+            if best.is_none_or(|(c, _, _)| cost < c) {
+                best = Some((cost, axis, b));
+            }
+        }
+    }
+
+    let mid = match best {
+        Some((cost, axis, plane)) => {
+            let split_cost = TRAVERSAL_COST + cost / bounds.half_area();
+            // Also a leaf when the areas are degenerate (NaN).
+            let split_pays = split_cost < packets(n as u32);
+            if n <= MAX_LEAF && !split_pays {
+                return leaf;
+            }
+            partition(prims, |p| bin_of(p.centre)[axis] < plane)
+        }
+        // All centres coincide: binning cannot separate them.
+        None if n <= MAX_LEAF => return leaf,
+        None => n / 2,
+    };
+    // Binning guarantees both sides are non-empty; halve anyway should that ever fail.
+    let mid = if mid == 0 || mid == n { n / 2 } else { mid };
+    split(prims, first, depth, mid, bounds)
+}
+
+/// Builds the two subtrees over `prims[..mid]` and `prims[mid..]` (in parallel when large),
+/// and their parent.
+fn split(prims: &mut [Prim], first: u32, depth: usize, mid: usize, bounds: Aabb) -> BuildNode {
+    let n = prims.len();
+    let (left_prims, right_prims) = prims.split_at_mut(mid);
+    let right_first = first + mid as u32;
+    let (left, right) = if n > PARALLEL_BUILD {
+        rayon::join(
+            || build_node(left_prims, first, depth + 1),
+            || build_node(right_prims, right_first, depth + 1),
+        )
+    } else {
+        (
+            build_node(left_prims, first, depth + 1),
+            build_node(right_prims, right_first, depth + 1),
+        )
+    };
+    BuildNode::Inner {
+        bounds,
+        children: Box::new([left, right]),
+    }
+}
+
+/// Moves the primitives for which `left` holds to the front; returns how many there are.
+fn partition(prims: &mut [Prim], left: impl Fn(&Prim) -> bool) -> usize {
+    let mut mid = 0;
+    for i in 0..prims.len() {
+        if left(&prims[i]) {
+            prims.swap(i, mid);
+            mid += 1;
+        }
+    }
+    mid
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// xorshift64*: a small seeded generator, so the tests need no `rand`.
+    struct Rng(u64);
+
+    impl Rng {
+        fn next_u64(&mut self) -> u64 {
+            self.0 ^= self.0 >> 12;
+            self.0 ^= self.0 << 25;
+            self.0 ^= self.0 >> 27;
+            self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
+        }
+        /// Uniform in [0, 1).
+        fn f32(&mut self) -> f32 {
+            (self.next_u64() >> 40) as f32 / (1u64 << 24) as f32
+        }
+        fn range(&mut self, lo: f32, hi: f32) -> f32 {
+            lo + (hi - lo) * self.f32()
+        }
+        fn vec3(&mut self, lo: f32, hi: f32) -> Vec3 {
+            Vec3::new(self.range(lo, hi), self.range(lo, hi), self.range(lo, hi))
+        }
+    }
+
+    /// `count` small triangles scattered in the unit cube.
+    fn random_triangles(rng: &mut Rng, count: usize, size: f32) -> Vec<[Vec3; 3]> {
+        (0..count)
+            .map(|_| {
+                let c = rng.vec3(0.0, 1.0);
+                [
+                    c + rng.vec3(-size, size),
+                    c + rng.vec3(-size, size),
+                    c + rng.vec3(-size, size),
+                ]
+            })
+            .collect()
+    }
+
+    /// The packet test on a single triangle.
+    fn hit_one(ray: &Ray, tri: &[Vec3; 3], t_min: f32, t_max: f32) -> Option<(f32, f32, f32)> {
+        let packet = Packet::new([tri; PACKET]);
+        let (lanes, t, u, v) = ray.hit(&packet, (Vec4::splat(t_min), Vec4::splat(t_max)));
+        assert!(lanes == 0 || lanes == 0xf, "lanes disagree: {lanes:b}");
+        (lanes != 0).then(|| (t.x, u.x, v.x))
+    }
+
+    fn brute_intersect(
+        triangles: &[[Vec3; 3]],
+        origin: Vec3,
+        dir: Vec3,
+        t_min: f32,
+        t_max: f32,
+    ) -> Option<Hit> {
+        let ray = Ray::new(origin, dir)?;
+        let mut best = None;
+        let mut t_max = t_max;
+        for (i, tri) in triangles.iter().enumerate() {
+            if let Some((t, u, v)) = hit_one(&ray, tri, t_min, t_max) {
+                t_max = t;
+                best = Some(Hit {
+                    t,
+                    triangle: i as u32,
+                    u,
+                    v,
+                });
+            }
         }
         best
     }
-    pub fn occluded(&self, o: Vec3, d: Vec3, t_min: f32, t_max: f32) -> bool { self.intersect(o, d, t_min, t_max).is_some() }
-    pub fn segment_occluded(&self, a: Vec3, b: Vec3, eps: f32) -> bool { self.occluded(a, b - a, eps, 1.0 - eps) }
+
+    /// Möller & Trumbore 1997 in f64, independent of the test under scrutiny.
+    fn moller_trumbore(tri: &[Vec3; 3], origin: Vec3, dir: Vec3) -> Option<(f64, f64, f64)> {
+        let [v0, v1, v2] = tri.map(|v| v.as_dvec3());
+        let (o, d) = (origin.as_dvec3(), dir.as_dvec3());
+        let (e1, e2) = (v1 - v0, v2 - v0);
+        let p = d.cross(e2);
+        let det = e1.dot(p);
+        if det.abs() < 1e-12 {
+            return None;
+        }
+        let s = o - v0;
+        let u = s.dot(p) / det;
+        let q = s.cross(e1);
+        let v = d.dot(q) / det;
+        if u < 0.0 || v < 0.0 || u + v > 1.0 {
+            return None;
+        }
+        Some((e2.dot(q) / det, u, v))
+    }
+
+    #[test]
+    fn matches_brute_force_on_random_scenes() {
+        let mut rng = Rng(0x9E37_79B9_7F4A_7C15);
+        for (count, size) in [(1, 0.3), (3, 0.3), (50, 0.2), (2000, 0.05), (20_000, 0.02)] {
+            let triangles = random_triangles(&mut rng, count, size);
+            let bvh = Bvh::build(&triangles);
+            assert_eq!(bvh.len(), count);
+            let mut hits = 0;
+            for _ in 0..3000 {
+                let origin = rng.vec3(-0.5, 1.5);
+                // Unnormalised on purpose: t must be in units of `dir`.
+                let dir = rng.vec3(-1.0, 1.0) * rng.range(0.1, 3.0);
+                let (t_min, t_max) = if rng.f32() < 0.5 {
+                    (0.0, f32::INFINITY)
+                } else {
+                    (rng.range(0.0, 0.5), rng.range(0.5, 1.5))
+                };
+                let expected = brute_intersect(&triangles, origin, dir, t_min, t_max);
+                let got = bvh.intersect(origin, dir, t_min, t_max);
+                match (got, expected) {
+                    (Some(g), Some(e)) => {
+                        assert_eq!(g.t, e.t, "count {count}: origin {origin} dir {dir}");
+                        assert!(
+                            g.triangle == e.triangle
+                                || triangles_tie(&triangles, g, e, origin, dir),
+                            "count {count}: {g:?} vs {e:?}"
+                        );
+                        hits += 1;
+                    }
+                    (g, e) => assert_eq!(g, e, "count {count}: origin {origin} dir {dir}"),
+                }
+                assert_eq!(
+                    bvh.occluded(origin, dir, t_min, t_max),
+                    expected.is_some(),
+                    "count {count}: origin {origin} dir {dir}"
+                );
+            }
+            assert!(
+                count < 50 || hits > 100,
+                "too few hits ({hits}) to test much"
+            );
+        }
+    }
+
+    /// Two different triangles may be hit at exactly the same `t`; either answer is right.
+    fn triangles_tie(triangles: &[[Vec3; 3]], a: Hit, b: Hit, origin: Vec3, dir: Vec3) -> bool {
+        let ray = Ray::new(origin, dir).unwrap();
+        let t_of = |h: Hit| {
+            hit_one(&ray, &triangles[h.triangle as usize], 0.0, f32::INFINITY).map(|(t, _, _)| t)
+        };
+        t_of(a) == t_of(b)
+    }
+
+    #[test]
+    fn triangle_test_agrees_with_moller_trumbore() {
+        let mut rng = Rng(7);
+        let mut hits = 0;
+        for _ in 0..20_000 {
+            let tri = random_triangles(&mut rng, 1, 0.5)[0];
+            let origin = rng.vec3(-1.0, 2.0);
+            // Aimed at the triangle's plane, in and around the triangle.
+            let (b1, b2) = (rng.range(-0.2, 1.0), rng.range(-0.2, 1.0));
+            let target = (1.0 - b1 - b2) * tri[0] + b1 * tri[1] + b2 * tri[2];
+            let dir = (target - origin) * rng.range(0.2, 2.0);
+            // Skip ill-conditioned cases (slivers, grazing rays), where f32 legitimately
+            // differs from f64 by more than the tolerances below.
+            let n = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
+            let longest = [tri[1] - tri[0], tri[2] - tri[1], tri[0] - tri[2]]
+                .map(|e| e.length_squared())
+                .into_iter()
+                .fold(0.0, f32::max);
+            if n.length() < 0.1 * longest || n.normalize().dot(dir.normalize()).abs() < 0.1 {
+                continue;
+            }
+            let ray = Ray::new(origin, dir).unwrap();
+            let got = hit_one(&ray, &tri, f32::NEG_INFINITY, f32::INFINITY);
+            let expected = moller_trumbore(&tri, origin, dir);
+            match (got, expected) {
+                (Some((t, u, v)), Some((te, ue, ve))) => {
+                    hits += 1;
+                    let scale = 1.0 + te.abs();
+                    assert!((t as f64 - te).abs() < 1e-4 * scale, "t {t} vs {te}");
+                    assert!((u as f64 - ue).abs() < 1e-3, "u {u} vs {ue}");
+                    assert!((v as f64 - ve).abs() < 1e-3, "v {v} vs {ve}");
+                    let p = origin + t * dir;
+                    let q = (1.0 - u - v) * tri[0] + u * tri[1] + v * tri[2];
+                    assert!((p - q).length() < 1e-3 * scale as f32, "{p} vs {q}");
+                }
+                (None, None) => {}
+                // Rays within rounding of an edge may legitimately differ; they are rare.
+                (Some((_, u, v)), None) => assert!(u.min(v).min(1.0 - u - v) < 1e-4),
+                (None, Some((_, u, v))) => assert!(u.min(v).min(1.0 - u - v) < 1e-4),
+            }
+        }
+        assert!(hits > 1000, "only {hits} hits");
+    }
+
+    #[test]
+    fn empty_bvh_hits_nothing() {
+        let bvh = Bvh::build(&[]);
+        assert!(bvh.is_empty());
+        assert_eq!(bvh.len(), 0);
+        assert!(!bvh.occluded(Vec3::ZERO, Vec3::X, 0.0, f32::INFINITY));
+        assert_eq!(bvh.intersect(Vec3::ZERO, Vec3::X, 0.0, f32::INFINITY), None);
+        assert!(!bvh.segment_occluded(Vec3::ZERO, Vec3::ONE, 1e-4));
+    }
+
+    /// The triangle x + y <= 1 in the plane z = `z`.
+    fn unit_triangle(z: f32) -> [Vec3; 3] {
+        [
+            Vec3::new(0.0, 0.0, z),
+            Vec3::new(1.0, 0.0, z),
+            Vec3::new(0.0, 1.0, z),
+        ]
+    }
+
+    #[test]
+    fn both_sides_block_and_barycentrics_are_reported() {
+        let bvh = Bvh::build(&[unit_triangle(1.0)]);
+        let from_below = bvh.intersect(Vec3::new(0.25, 0.5, 0.0), Vec3::Z, 0.0, 10.0);
+        let from_above = bvh.intersect(Vec3::new(0.25, 0.5, 3.0), -2.0 * Vec3::Z, 0.0, 10.0);
+        let expected = Hit {
+            t: 1.0,
+            triangle: 0,
+            u: 0.25,
+            v: 0.5,
+        };
+        assert_eq!(from_below, Some(expected));
+        assert_eq!(from_above, Some(expected));
+    }
+
+    #[test]
+    fn ray_parallel_to_triangle_misses() {
+        let bvh = Bvh::build(&[unit_triangle(0.0)]);
+        // In the triangle's plane, through its interior, and just above it.
+        for z in [0.0, 1e-6] {
+            let origin = Vec3::new(-1.0, 0.25, z);
+            assert!(!bvh.occluded(origin, Vec3::X, 0.0, f32::INFINITY), "z {z}");
+            assert_eq!(bvh.intersect(origin, Vec3::X, 0.0, f32::INFINITY), None);
+        }
+    }
+
+    #[test]
+    fn t_range_is_open_and_respected() {
+        let triangles = [unit_triangle(1.0), unit_triangle(2.0), unit_triangle(3.0)];
+        let bvh = Bvh::build(&triangles);
+        let o = Vec3::new(0.2, 0.2, 0.0);
+        let t_of = |t_min, t_max| bvh.intersect(o, Vec3::Z, t_min, t_max).map(|h| h.t);
+        assert_eq!(t_of(0.0, 10.0), Some(1.0));
+        assert_eq!(t_of(1.0, 10.0), Some(2.0), "t_min is exclusive");
+        assert_eq!(t_of(1.5, 10.0), Some(2.0));
+        assert_eq!(t_of(0.0, 1.0), None, "t_max is exclusive");
+        assert_eq!(t_of(1.5, 2.5), Some(2.0));
+        assert_eq!(t_of(3.5, 10.0), None);
+        assert_eq!(t_of(-10.0, 0.5), None);
+        assert_eq!(t_of(2.0, 1.0), None, "empty interval");
+        assert_eq!(t_of(f32::NAN, 10.0), None);
+        let hit = bvh.intersect(o, Vec3::Z, 1.5, 10.0).unwrap();
+        assert_eq!(hit.triangle, 1);
+        // Behind the origin counts when t_min allows it.
+        let back = bvh.intersect(Vec3::new(0.2, 0.2, 2.5), Vec3::Z, -10.0, 0.0);
+        let back = back.unwrap();
+        assert_eq!(back.triangle, 0);
+        assert!((back.t + 1.5).abs() < 1e-6, "{back:?}");
+        assert!(bvh.occluded(o, Vec3::Z, 1.5, 2.5));
+        assert!(!bvh.occluded(o, Vec3::Z, 3.0, 10.0));
+        assert!(!bvh.occluded(o, Vec3::Z, 0.0, 1.0));
+    }
+
+    #[test]
+    fn degenerate_rays_hit_nothing() {
+        let bvh = Bvh::build(&[unit_triangle(1.0)]);
+        let o = Vec3::new(0.2, 0.2, 0.0);
+        for dir in [Vec3::ZERO, Vec3::new(0.0, 0.0, f32::NAN), Vec3::INFINITY] {
+            assert!(!bvh.occluded(o, dir, 0.0, 10.0));
+            assert_eq!(bvh.intersect(o, dir, 0.0, 10.0), None);
+        }
+        assert!(!bvh.segment_occluded(o, o, 1e-4));
+    }
+
+    #[test]
+    fn segment_blocked_only_by_something_between_its_ends() {
+        // A wall at z = 1 between the end points, and the floors they stand on.
+        let mut triangles = vec![unit_triangle(1.0)];
+        triangles.push([
+            Vec3::new(-1.0, -1.0, 0.0),
+            Vec3::new(3.0, -1.0, 0.0),
+            Vec3::new(-1.0, 3.0, 0.0),
+        ]);
+        triangles.push([
+            Vec3::new(-1.0, -1.0, 2.0),
+            Vec3::new(3.0, -1.0, 2.0),
+            Vec3::new(-1.0, 3.0, 2.0),
+        ]);
+        let bvh = Bvh::build(&triangles);
+        let a = Vec3::new(0.2, 0.2, 0.0);
+        assert!(bvh.segment_occluded(a, Vec3::new(0.3, 0.3, 2.0), 1e-4));
+        assert!(bvh.segment_occluded(Vec3::new(0.3, 0.3, 2.0), a, 1e-4));
+        // Beside the wall: only the end points' own floors are touched.
+        assert!(!bvh.segment_occluded(Vec3::new(0.9, 0.9, 0.0), Vec3::new(0.8, 0.8, 2.0), 1e-4));
+        // Ending just short of the wall.
+        assert!(!bvh.segment_occluded(a, Vec3::new(0.2, 0.2, 0.999), 1e-4));
+    }
+
+    #[test]
+    fn shared_edges_and_vertices_are_watertight() {
+        // A tilted quad cut into 2 × 2 cells of two triangles, so that it has interior edges
+        // (diagonals and mid-lines) and a vertex shared by six triangles; no coordinate is
+        // trivial. Rays are aimed at (the f32 rounding of) points on the interior edges and at
+        // the central vertex, from both sides and many angles. The outer boundary is avoided:
+        // a ray aimed at it may rightly miss by a rounding error. (Möller–Trumbore in f32, the
+        // usual non-watertight test, lets about 6 % of these rays through.)
+        let p = Vec3::new(0.1, 0.2, 0.3);
+        let e1 = Vec3::new(0.9, 0.13, -0.21);
+        let e2 = Vec3::new(-0.17, 0.77, 0.35);
+        let vertex = |i: usize, j: usize| p + e1 * (i as f32 / 2.0) + e2 * (j as f32 / 2.0);
+        let mut triangles = Vec::new();
+        for i in 0..2 {
+            for j in 0..2 {
+                let (a, b, c, d) = (
+                    vertex(i, j),
+                    vertex(i + 1, j),
+                    vertex(i + 1, j + 1),
+                    vertex(i, j + 1),
+                );
+                triangles.push([a, b, c]);
+                triangles.push([a, c, d]);
+            }
+        }
+        let bvh = Bvh::build(&triangles);
+        let centre = vertex(1, 1);
+        let interior_edges = [
+            (vertex(0, 0), centre),
+            (centre, vertex(2, 2)),
+            (vertex(1, 0), vertex(1, 2)),
+            (vertex(0, 1), vertex(2, 1)),
+        ];
+        let normal = e1.cross(e2).normalize();
+        let mut targets = vec![centre];
+        for (a, b) in interior_edges {
+            targets.extend((1..200).map(|k| a + (b - a) * (k as f32 / 200.0)));
+        }
+        let mut misses = 0;
+        let mut rays = 0;
+        for target in targets {
+            for j in 0..50 {
+                let angle = j as f32 * 0.37;
+                let tilt = Vec3::new(angle.cos(), angle.sin(), (angle * 1.7).sin()) * 0.6;
+                let side = if j % 2 == 0 { 1.0 } else { -1.0 };
+                let origin = target + (normal + tilt) * side;
+                let dir = target - origin;
+                rays += 2;
+                if bvh.intersect(origin, dir, 0.0, 2.0).is_none() {
+                    misses += 1;
+                }
+                if !bvh.occluded(origin, dir, 0.0, 2.0) {
+                    misses += 1;
+                }
+            }
+        }
+        assert_eq!(misses, 0, "{misses} of {rays} rays slipped through");
+    }
+
+    #[test]
+    fn degenerate_inputs_build() {
+        // Identical triangles (all centres coincide), zero-area ones, and a line of them.
+        let same = vec![unit_triangle(0.0); 1000];
+        let bvh = Bvh::build(&same);
+        let hit = bvh
+            .intersect(Vec3::new(0.2, 0.2, -1.0), Vec3::Z, 0.0, 10.0)
+            .unwrap();
+        assert_eq!(hit.t, 1.0);
+        let flat = vec![[Vec3::ONE, Vec3::ONE, Vec3::ONE]; 10];
+        let bvh = Bvh::build(&flat);
+        assert!(!bvh.occluded(Vec3::ZERO, Vec3::ONE, 0.0, 10.0));
+        // Exponentially spaced: a badly unbalanced tree, which must respect the depth limit.
+        let line: Vec<_> = (0..200)
+            .map(|i| {
+                let z = 1.1f32.powi(i) * 1e-6;
+                unit_triangle(z)
+            })
+            .collect();
+        let bvh = Bvh::build(&line);
+        let hit = bvh
+            .intersect(Vec3::new(0.2, 0.2, -1.0), Vec3::Z, 0.0, f32::MAX)
+            .unwrap();
+        assert_eq!(hit.triangle, 0);
+        let hit = bvh
+            .intersect(Vec3::new(0.2, 0.2, 1e3), -Vec3::Z, 0.0, f32::MAX)
+            .unwrap();
+        assert_eq!(hit.triangle, 199);
+    }
+
+    #[test]
+    fn deep_tree_stack_agrees_with_shallow_one() {
+        // Triangles spaced by powers of two make a chain-like tree; with random ones around
+        // them, rays need the stack. Both stack sizes must give the brute-force answers.
+        let mut rng = Rng(99);
+        let mut triangles: Vec<_> = (0..240)
+            .map(|i| unit_triangle(2f32.powi(i - 120)))
+            .collect();
+        triangles.extend(random_triangles(&mut rng, 500, 0.1));
+        let bvh = Bvh::build(&triangles);
+        for _ in 0..2000 {
+            let origin = rng.vec3(-0.5, 1.5);
+            let dir = rng.vec3(-1.0, 1.0);
+            let ray = Ray::new(origin, dir).unwrap();
+            let range = (Vec4::splat(0.0), Vec4::splat(f32::INFINITY));
+            let expected = brute_intersect(&triangles, origin, dir, 0.0, f32::INFINITY);
+            let shallow = bvh.intersect_from::<{ 3 * SHALLOW_DEPTH + 1 }>(&ray, range);
+            let deep = bvh.intersect_from::<STACK>(&ray, range);
+            assert_eq!(shallow.map(|h| h.t), expected.map(|h| h.t));
+            assert_eq!(deep, shallow);
+            let occluded = bvh.occluded_from::<STACK>(&ray, range);
+            assert_eq!(occluded, expected.is_some());
+            assert_eq!(
+                bvh.occluded_from::<{ 3 * SHALLOW_DEPTH + 1 }>(&ray, range),
+                occluded
+            );
+        }
+    }
+
+    #[test]
+    fn is_send_and_sync() {
+        fn check<T: Send + Sync>() {}
+        check::<Bvh>();
+    }
+
+    #[test]
+    fn nodes_are_two_cache_lines() {
+        assert_eq!(std::mem::size_of::<Node>(), 128);
+        assert_eq!(std::mem::align_of::<Node>(), 64);
+    }
 }

@@ -99,6 +99,11 @@ impl Conformity {
         Self { edges }
     }
 
+    /// The hanging vertices lying on the edges of element `element`.
+    pub fn hanging_on(&self, element: usize) -> impl Iterator<Item = u32> + '_ {
+        self.edges[element].iter().flatten().map(|&(_, v)| v)
+    }
+
     /// Number of hanging vertices found.
     pub fn hanging_count(&self) -> usize {
         self.edges.iter().flatten().map(Vec::len).sum()
@@ -132,6 +137,7 @@ pub fn shaded_triangles(
                 v.iter_mut().for_each(|x| *x /= w);
             }
         }
+        constrain_hanging(vertices, elements, conformity, &mut vertex_b);
     }
     let to_radiance = |b: [f64; 3]| b.map(|x| (x / PI) as f32);
     let mut out = Vec::with_capacity(elements.len() * 4);
@@ -188,6 +194,36 @@ pub fn shaded_triangles(
         }
     }
     out
+}
+
+/// A hanging vertex of the same surface (left by adaptive refinement) takes the value
+/// interpolated along the coarse edge it lies on, so both sides of the edge shade alike (no
+/// seam). Longer edges first, so chains of hanging vertices resolve coarse to fine.
+fn constrain_hanging(vertices: &[DVec3], elements: &[Element], conformity: &Conformity, vertex_b: &mut [[f64; 3]]) {
+    let mut surface_of = vec![u32::MAX; vertices.len()];
+    for e in elements {
+        for &c in &e.corners {
+            surface_of[c as usize] = e.surface;
+        }
+    }
+    let mut constraints: Vec<(f64, u32, u32, f64, u32)> = Vec::new();
+    for (i, e) in elements.iter().enumerate() {
+        let n = e.corners.len();
+        for k in 0..n {
+            let (a, b) = (e.corners[k], e.corners[(k + 1) % n]);
+            for &(t, v) in &conformity.edges[i][k] {
+                if surface_of[v as usize] == e.surface {
+                    let len = vertices[a as usize].distance(vertices[b as usize]);
+                    constraints.push((len, a, b, t, v));
+                }
+            }
+        }
+    }
+    constraints.sort_by(|x, y| y.0.total_cmp(&x.0));
+    for (_, a, b, t, v) in constraints {
+        let (va, vb) = (vertex_b[a as usize], vertex_b[b as usize]);
+        vertex_b[v as usize] = std::array::from_fn(|c| va[c] * (1.0 - t) + vb[c] * t);
+    }
 }
 
 /// Element edges as line segments (for the wireframe overlay), each shared edge once.

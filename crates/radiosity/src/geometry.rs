@@ -46,7 +46,7 @@ impl Polygon {
         let vertices = check_vertices(vertices)?;
         let (normal, area) = newell(&vertices);
         let diameter = diameter(&vertices);
-        if !(area > 1e-14 * diameter * diameter) || area < 1e-20 {
+        if area.is_nan() || area <= 1e-14 * diameter * diameter || area < 1e-20 {
             return Err(GeometryError::Degenerate { area });
         }
         let deviation = plane_deviation(&vertices, normal);

@@ -10,10 +10,18 @@
 //! irradiance in W·m⁻², power in W.
 
 pub mod accel;
+pub mod compare;
+pub mod cornell;
+pub mod display;
 pub mod formfactor;
 pub mod geometry;
+pub mod io;
 pub mod mesh;
+pub mod pipeline;
 pub mod progress;
+pub mod refine;
 pub mod report;
 pub mod scene;
+pub mod sequence;
+pub mod render;
 pub mod solve;

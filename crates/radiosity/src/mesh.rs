@@ -75,6 +75,13 @@ pub struct Element {
     pub normal: DVec3,
     /// Area in m².
     pub area: f64,
+    /// The element this one was split from by adaptive refinement (index in the mesh it
+    /// was refined from), if any.
+    #[serde(default)]
+    pub parent: Option<u32>,
+    /// Refinement depth: 0 for elements of the initial mesh.
+    #[serde(default)]
+    pub depth: u8,
 }
 
 /// A shooting patch: a convex polygon made of whole elements of one surface.
@@ -91,6 +98,9 @@ pub struct Patch {
 pub struct SurfaceData {
     /// Index into [`Mesh::objects`].
     pub object: u32,
+    /// The scene surface this (piece of a) surface comes from.
+    #[serde(default)]
+    pub scene_surface: u32,
     /// Reflectance ρ per channel.
     pub reflectance: [f64; 3],
     /// Emitted exitance E = π·L_e per channel, W·m⁻².
@@ -106,7 +116,8 @@ pub struct Mesh {
     pub surfaces: Vec<SurfaceData>,
     /// Object names, as in the scene.
     pub objects: Vec<String>,
-    /// The original surface polygons (for visibility and display), indexed like `surfaces`.
+    /// The meshed surface polygons (scene surfaces, split where other surfaces touch them),
+    /// indexed like `surfaces`; element `surface` fields index these.
     pub surface_polygons: Vec<Polygon>,
 }
 
@@ -119,6 +130,8 @@ impl Mesh {
         if !(1..=64).contains(&options.patch_subdivision) {
             return Err(MeshError::BadPatchSubdivision(options.patch_subdivision));
         }
+        let pieces = split_at_contacts(scene);
+        let polygons: Vec<&Polygon> = pieces.iter().map(|(_, p)| p).collect();
         let size = match options.max_element_size {
             Some(h) if h.is_finite() && h > 0.0 => h,
             Some(h) => return Err(MeshError::BadElementSize(h)),
@@ -132,14 +145,10 @@ impl Mesh {
                         limit: MAX_ELEMENTS,
                     });
                 }
-                size_for_count(scene, options.elements)
+                size_for_count(&polygons, options.elements)
             }
         };
-        let estimate: f64 = scene
-            .surfaces
-            .iter()
-            .map(|s| estimate_elements(&s.polygon, size))
-            .sum();
+        let estimate: f64 = polygons.iter().map(|p| estimate_elements(p, size)).sum();
         if estimate > MAX_ELEMENTS as f64 {
             return Err(MeshError::TooManyElements {
                 estimate: estimate.min(usize::MAX as f64) as usize,
@@ -156,21 +165,18 @@ impl Mesh {
             objects: objects.clone(),
             surface_polygons: Vec::new(),
         };
-        for (index, surface) in scene.surfaces.iter().enumerate() {
+        for (index, (scene_surface, polygon)) in pieces.iter().enumerate() {
+            let surface = &scene.surfaces[*scene_surface];
             let material = scene.material(surface);
             let object = objects.iter().position(|o| *o == surface.object).unwrap_or(0) as u32;
             mesh.surfaces.push(SurfaceData {
                 object,
+                scene_surface: *scene_surface as u32,
                 reflectance: material.reflectance,
                 exitance: material.exitance(),
             });
-            mesh.surface_polygons.push(surface.polygon.clone());
-            mesh.mesh_surface(
-                SurfaceId(index as u32),
-                &surface.polygon,
-                size,
-                options.patch_subdivision,
-            );
+            mesh.surface_polygons.push(polygon.clone());
+            mesh.mesh_surface(SurfaceId(index as u32), polygon, size, options.patch_subdivision);
         }
         Ok(mesh)
     }
@@ -324,6 +330,8 @@ impl Mesh {
             centre: polygon.centroid(),
             normal: polygon.normal(),
             area: polygon.area(),
+            parent: None,
+            depth: 0,
         });
     }
 
@@ -350,22 +358,21 @@ fn estimate_elements(polygon: &Polygon, size: f64) -> f64 {
 }
 
 /// Element edge length giving about `count` elements over the scene's total area.
-fn size_for_count(scene: &Scene, count: usize) -> f64 {
+fn size_for_count(polygons: &[&Polygon], count: usize) -> f64 {
     // Square elements of side h cover the area with A/h² elements, but every polygon rounds
     // its element counts up; a few bisection steps on the real count correct for that.
-    let area = scene.total_area();
+    let area: f64 = polygons.iter().map(|p| p.area()).sum();
     let count_for = |h: f64| -> f64 {
-        scene
-            .surfaces
+        polygons
             .iter()
-            .map(|s| {
-                let v = s.polygon.vertices();
+            .map(|p| {
+                let v = p.vertices();
                 if v.len() == 4 {
                     let lu = v[0].distance(v[1]).max(v[3].distance(v[2]));
                     let lv = v[0].distance(v[3]).max(v[1].distance(v[2]));
                     ((lu / h).ceil().max(1.0)) * ((lv / h).ceil().max(1.0))
                 } else {
-                    let l = s.polygon.max_edge();
+                    let l = p.max_edge();
                     (l / h).ceil().max(1.0).powi(2) * (v.len() - 2) as f64
                 }
             })
@@ -382,6 +389,79 @@ fn size_for_count(scene: &Scene, count: usize) -> f64 {
         }
     }
     hi
+}
+
+/// Splits surfaces along the lines where other surfaces touch them: an edge of another,
+/// non-parallel surface lying in a surface's plane and crossing its interior (a block
+/// standing on a floor). Radiosity is discontinuous there (lit outside, dark underneath:
+/// a D0 discontinuity in the sense of Heckbert 1992 and Lischinski, Tampieri & Greenberg
+/// 1992), so no element may straddle it. Each piece is cut by the whole line, which keeps
+/// pieces convex. Returns (scene surface index, piece) pairs in scene order.
+pub fn split_at_contacts(scene: &Scene) -> Vec<(usize, Polygon)> {
+    let mut out = Vec::new();
+    for (si, s) in scene.surfaces.iter().enumerate() {
+        let n = s.polygon.normal();
+        let tol = 1e-7 * s.polygon.diameter();
+        let mut pieces = vec![s.polygon.clone()];
+        for (ti, t) in scene.surfaces.iter().enumerate() {
+            if ti == si || t.polygon.normal().cross(n).length() < 1e-6 {
+                continue;
+            }
+            for (a, b) in t.polygon.edges() {
+                if s.polygon.plane_distance(a).abs() > tol || s.polygon.plane_distance(b).abs() > tol {
+                    continue;
+                }
+                let cut = n.cross(b - a).normalize();
+                let mut next = Vec::with_capacity(pieces.len() + 1);
+                for piece in pieces {
+                    let split = crosses_interior(&piece, a, b, tol)
+                        .then(|| {
+                            let left = piece.clip_to_halfspace(a, cut)?;
+                            let right = piece.clip_to_halfspace(a, -cut)?;
+                            Some((Polygon::new(left).ok()?, Polygon::new(right).ok()?))
+                        })
+                        .flatten();
+                    match split {
+                        Some((l, r)) if l.area() > tol * tol && r.area() > tol * tol => {
+                            next.push(l);
+                            next.push(r);
+                        }
+                        _ => next.push(piece),
+                    }
+                }
+                pieces = next;
+            }
+        }
+        out.extend(pieces.into_iter().map(|p| (si, p)));
+    }
+    out
+}
+
+/// Whether the segment a–b (in the polygon's plane) passes through the polygon's interior.
+fn crosses_interior(polygon: &Polygon, a: DVec3, b: DVec3, tol: f64) -> bool {
+    // Cyrus–Beck clipping of the segment against the polygon's edges (inward normals).
+    let n = polygon.normal();
+    let (mut t0, mut t1) = (0.0f64, 1.0f64);
+    let d = b - a;
+    for (p, q) in polygon.edges() {
+        let inward = n.cross(q - p);
+        let len = inward.length();
+        let num = (a - p).dot(inward) / len;
+        let den = d.dot(inward) / len;
+        if den.abs() < 1e-15 {
+            if num <= tol {
+                return false; // parallel and on or outside this edge
+            }
+            continue;
+        }
+        let t = -num / den;
+        if den > 0.0 {
+            t0 = t0.max(t);
+        } else {
+            t1 = t1.min(t);
+        }
+    }
+    (t1 - t0) * d.length() > tol
 }
 
 /// Shares vertices that are bit-identical within one surface.

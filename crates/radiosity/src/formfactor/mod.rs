@@ -6,9 +6,16 @@
 //! are selected by name ([`FormFactorMethod`]) from the command line and the scene file.
 //! Visibility is one shared component ([`Visibility`], rays through a BVH).
 
+pub mod analytic;
 pub mod analytic_point;
+pub mod analytic_polygon;
+pub mod hemicube;
+pub mod monte_carlo;
+pub mod pair;
+pub mod point_sampled;
 pub mod quadrature;
 pub mod raycast;
+pub mod table;
 
 use crate::accel::Bvh;
 use crate::mesh::Mesh;
@@ -19,27 +26,64 @@ use std::fmt;
 use std::str::FromStr;
 
 /// The form-factor methods, by the names used on the command line and in scene files.
+///
+/// See also: [`pair`] for the same methods on a single mesh-free problem, and [`table`] for
+/// their accuracy and cost on the reference cases.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum FormFactorMethod {
+    /// Element centre to patch by Lambert's exact contour formula, probe-ray visibility
+    /// ([`analytic::AnalyticPoint`]).
+    AnalyticPoint,
+    /// Exact polygon-to-polygon (Schröder & Hanrahan 1993) × a ray-estimated visible
+    /// fraction ([`analytic::AnalyticPolygon`]).
+    AnalyticPolygon,
+    /// The finite sum Σ cosθ_x cosθ_y V ΔA_y / (π r²) over sub-areas of the patch
+    /// ([`point_sampled::PointSampled`]).
+    PointSampled,
+    /// Nusselt's analogue by the hemi-cube (Cohen & Greenberg 1985), z-buffer visibility
+    /// ([`hemicube::Hemicube`]).
+    Hemicube,
     /// Receiver quadrature × exact point-to-polygon × shadow rays (Wallace, Elmquist &
     /// Haines 1989).
     #[default]
     Raycast,
+    /// Cosine-distributed rays from random points of the element, binned by the patch they
+    /// hit first ([`monte_carlo::MonteCarlo`]).
+    MonteCarlo,
 }
 
 impl FormFactorMethod {
-    pub const ALL: &'static [FormFactorMethod] = &[FormFactorMethod::Raycast];
+    /// Every method, in the order of the lecture (exact to sampled).
+    pub const ALL: &'static [FormFactorMethod] = &[
+        FormFactorMethod::AnalyticPoint,
+        FormFactorMethod::AnalyticPolygon,
+        FormFactorMethod::PointSampled,
+        FormFactorMethod::Hemicube,
+        FormFactorMethod::Raycast,
+        FormFactorMethod::MonteCarlo,
+    ];
 
     pub fn name(self) -> &'static str {
         match self {
+            FormFactorMethod::AnalyticPoint => "analytic-point",
+            FormFactorMethod::AnalyticPolygon => "analytic-polygon",
+            FormFactorMethod::PointSampled => "point-sampled",
+            FormFactorMethod::Hemicube => "hemicube",
             FormFactorMethod::Raycast => "raycast",
+            FormFactorMethod::MonteCarlo => "monte-carlo",
         }
     }
 
-    /// Builds the method's engine over a mesh.
+    /// Builds the method's engine over a mesh, with the method's default parameters.
     pub fn engine<'a>(self, mesh: &'a Mesh, visibility: &'a Visibility) -> Box<dyn FormFactors + 'a> {
         match self {
+            FormFactorMethod::AnalyticPoint => Box::new(analytic::AnalyticPoint::new(mesh, visibility)),
+            FormFactorMethod::AnalyticPolygon => Box::new(analytic::AnalyticPolygon::new(mesh, visibility)),
+            FormFactorMethod::PointSampled => Box::new(point_sampled::PointSampled::new(mesh, visibility)),
+            // The hemi-cube's z-buffer is its own visibility.
+            FormFactorMethod::Hemicube => Box::new(hemicube::Hemicube::new(mesh, hemicube::HemicubeParams::default())),
             FormFactorMethod::Raycast => Box::new(raycast::Raycast::new(mesh, visibility)),
+            FormFactorMethod::MonteCarlo => Box::new(monte_carlo::MonteCarlo::new(mesh, visibility)),
         }
     }
 }
@@ -135,26 +179,51 @@ impl CouplingMatrix {
 pub struct Visibility {
     bvh: Bvh,
     offset: f64,
+    /// The polygon each BVH triangle came from (an index into the polygons it was built from:
+    /// [`Mesh::surface_polygons`] for [`Visibility::new`]).
+    triangle_polygon: Vec<u32>,
 }
 
 impl Visibility {
     /// Builds the BVH over the original surface polygons (fan-triangulated).
     pub fn new(mesh: &Mesh) -> Self {
-        let mut tris = Vec::new();
         let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
         for p in &mesh.surface_polygons {
-            for t in p.triangles() {
-                tris.push(t.map(|v| v.as_vec3()));
-            }
             let (a, b) = p.bounds();
             lo = lo.min(a);
             hi = hi.max(b);
         }
         let diameter = (hi - lo).length().max(1e-9);
+        Self::from_polygons(mesh.surface_polygons.iter().map(|p| p.vertices()), diameter)
+    }
+
+    /// Builds the BVH over arbitrary opaque convex polygons (fan-triangulated), e.g. the
+    /// occluders of a [`pair::PairProblem`]; ray ends are lifted by 1e-5 × `diameter`, the
+    /// size of the whole configuration in metres.
+    pub fn from_polygons<'p>(polygons: impl IntoIterator<Item = &'p [DVec3]>, diameter: f64) -> Self {
+        let mut tris = Vec::new();
+        let mut triangle_polygon = Vec::new();
+        for (i, p) in polygons.into_iter().enumerate() {
+            for w in p[1..].windows(2) {
+                tris.push([p[0].as_vec3(), w[0].as_vec3(), w[1].as_vec3()]);
+                triangle_polygon.push(i as u32);
+            }
+        }
         Self {
             bvh: Bvh::build(&tris),
-            offset: 1e-5 * diameter,
+            offset: 1e-5 * diameter.max(1e-9),
+            triangle_polygon,
         }
+    }
+
+    /// How far ray ends are lifted off their surfaces, m.
+    pub fn offset(&self) -> f64 {
+        self.offset
+    }
+
+    /// The polygon (surface) a BVH triangle belongs to.
+    pub fn polygon_of(&self, triangle: u32) -> usize {
+        self.triangle_polygon[triangle as usize] as usize
     }
 
     /// True when nothing blocks the segment from `x` (on a surface with normal `nx`) to `y`
@@ -207,6 +276,105 @@ pub fn subdivide(vertices: &[DVec3], k: usize) -> Vec<Vec<DVec3>> {
         let v0 = vertices[0];
         for w in vertices[1..].windows(2) {
             out.extend(subdivide(&[v0, w[0], w[1]], k));
+        }
+    }
+    out
+}
+
+/// Divides a convex polygon into about `k²` convex pieces of similar size and shape:
+/// triangles by [`subdivide`] (`k²` similar triangles), quads on a `ku × kv` bilinear lattice
+/// with `ku / kv` following the quad's aspect ratio (so that the pieces of a long strip are
+/// not long strips themselves), larger polygons by clipping a square grid of side √A / k laid
+/// along their first edge (so that a 256-gon is not cut into slivers).
+///
+/// The pieces tile the polygon exactly (their areas sum to its area, to rounding).
+pub fn sub_areas(vertices: &[DVec3], k: usize) -> Vec<Vec<DVec3>> {
+    let k = k.max(1);
+    if vertices.len() == 4 {
+        let [a, b, c, d] = [vertices[0], vertices[1], vertices[2], vertices[3]];
+        let lu = a.distance(b).max(d.distance(c));
+        let lv = a.distance(d).max(b.distance(c));
+        let ku = ((k as f64 * (lu / lv).sqrt()).round() as usize).clamp(1, k * k);
+        let kv = ((k * k) as f64 / ku as f64).round().max(1.0) as usize;
+        let p = |i: usize, j: usize| {
+            let (u, v) = (i as f64 / ku as f64, j as f64 / kv as f64);
+            (1.0 - u) * (1.0 - v) * a + u * (1.0 - v) * b + u * v * c + (1.0 - u) * v * d
+        };
+        let mut out = Vec::with_capacity(ku * kv);
+        for i in 0..ku {
+            for j in 0..kv {
+                out.push(vec![p(i, j), p(i + 1, j), p(i + 1, j + 1), p(i, j + 1)]);
+            }
+        }
+        return out;
+    }
+    if vertices.len() <= 4 {
+        return subdivide(vertices, k);
+    }
+    let (normal, area) = crate::geometry::newell(vertices);
+    let origin = vertices[0];
+    let u = (vertices[1] - origin).normalize();
+    let w = normal.cross(u);
+    let flat: Vec<[f64; 2]> = vertices
+        .iter()
+        .map(|v| [(*v - origin).dot(u), (*v - origin).dot(w)])
+        .collect();
+    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    for p in &flat {
+        for a in 0..2 {
+            lo[a] = lo[a].min(p[a]);
+            hi[a] = hi[a].max(p[a]);
+        }
+    }
+    let side = area.sqrt() / k as f64;
+    let cells = |a: usize| (((hi[a] - lo[a]) / side).ceil() as usize).max(1);
+    let (nu, nw) = (cells(0), cells(1));
+    let (hu, hw) = ((hi[0] - lo[0]) / nu as f64, (hi[1] - lo[1]) / nw as f64);
+    let mut out = Vec::new();
+    for i in 0..nu {
+        for j in 0..nw {
+            let (u0, w0) = (lo[0] + i as f64 * hu, lo[1] + j as f64 * hw);
+            let mut piece = flat.clone();
+            // The outer cells reach the bounding box: only inner cell walls cut.
+            if i > 0 {
+                piece = clip_flat(&piece, 0, u0, true);
+            }
+            if i + 1 < nu {
+                piece = clip_flat(&piece, 0, u0 + hu, false);
+            }
+            if j > 0 {
+                piece = clip_flat(&piece, 1, w0, true);
+            }
+            if j + 1 < nw {
+                piece = clip_flat(&piece, 1, w0 + hw, false);
+            }
+            if piece.len() < 3 {
+                continue;
+            }
+            let loop3: Vec<DVec3> = piece.iter().map(|p| origin + u * p[0] + w * p[1]).collect();
+            if crate::geometry::newell(&loop3).1 > 1e-12 * area {
+                out.push(loop3);
+            }
+        }
+    }
+    out
+}
+
+/// Sutherland–Hodgman clip of a 2-D convex loop to `p[axis] ≥ bound` (`above`) or
+/// `p[axis] ≤ bound`.
+fn clip_flat(poly: &[[f64; 2]], axis: usize, bound: f64, above: bool) -> Vec<[f64; 2]> {
+    let side = |p: &[f64; 2]| if above { p[axis] - bound } else { bound - p[axis] };
+    let n = poly.len();
+    let mut out = Vec::with_capacity(n + 2);
+    for i in 0..n {
+        let (a, b) = (poly[i], poly[(i + 1) % n]);
+        let (da, db) = (side(&a), side(&b));
+        if da >= 0.0 {
+            out.push(a);
+        }
+        if (da > 0.0 && db < 0.0) || (da < 0.0 && db > 0.0) {
+            let t = da / (da - db);
+            out.push([a[0] + (b[0] - a[0]) * t, a[1] + (b[1] - a[1]) * t]);
         }
     }
     out

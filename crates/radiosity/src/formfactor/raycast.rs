@@ -44,7 +44,7 @@ impl Default for RaycastParams {
         Self {
             probe: 2,
             penumbra: 4,
-            quality: 2.0,
+            quality: 1.0,
             max_order: 16,
         }
     }
@@ -65,7 +65,6 @@ struct SourcePatch {
 pub struct Raycast<'a> {
     mesh: &'a Mesh,
     visibility: &'a Visibility,
-    params: RaycastParams,
     sources: Vec<SourcePatch>,
     element_orders: Vec<usize>,
 }
@@ -134,7 +133,6 @@ impl<'a> Raycast<'a> {
         Self {
             mesh,
             visibility,
-            params,
             sources,
             element_orders,
         }

@@ -17,14 +17,7 @@ pub fn solve(system: &PatchSystem, options: &SolveOptions, progress: &dyn Progre
     let mut iterations = 0;
     progress.start("gauss-seidel", options.max_iterations as u64);
     while residual > options.tolerance && iterations < options.max_iterations {
-        channels.par_iter_mut().enumerate().for_each(|(c, b)| {
-            let m = &system.matrix[c];
-            for p in 0..n {
-                let row = &m[p * n..(p + 1) * n];
-                let sum: f64 = row.iter().zip(b.iter()).map(|(m, x)| m * x).sum::<f64>() - row[p] * b[p];
-                b[p] = (system.exitance[p][c] + sum) / (1.0 - row[p]);
-            }
-        });
+        sweep(system, &mut channels);
         iterations += 1;
         residual = system.residual(&assemble(&channels));
         progress.inc(1);
@@ -32,4 +25,17 @@ pub fn solve(system: &PatchSystem, options: &SolveOptions, progress: &dyn Progre
     }
     progress.finish();
     (assemble(&channels), iterations, residual)
+}
+
+/// One Gauss–Seidel sweep over the patches, in place; `channels[c][p]` is B_p in channel c.
+pub fn sweep(system: &PatchSystem, channels: &mut [Vec<f64>]) {
+    let n = system.patches;
+    channels.par_iter_mut().enumerate().for_each(|(c, b)| {
+        let m = &system.matrix[c];
+        for p in 0..n {
+            let row = &m[p * n..(p + 1) * n];
+            let sum: f64 = row.iter().zip(b.iter()).map(|(m, x)| m * x).sum::<f64>() - row[p] * b[p];
+            b[p] = (system.exitance[p][c] + sum) / (1.0 - row[p]);
+        }
+    });
 }

@@ -18,13 +18,13 @@ use std::time::Instant;
 
 /// The state of a progressive solution, which can be advanced shot by shot (for image
 /// sequences) and turned into a [`Solution`] at any point.
-pub struct Progressive<'a> {
-    mesh: &'a Mesh,
-    ff: &'a dyn FormFactors,
+pub struct Progressive {
     overshoot: f64,
     radiosity: Vec<[f64; 3]>,
     irradiance: Vec<[f64; 3]>,
     unshot: Vec<[f64; 3]>,
+    /// Total radiosity each patch has shot so far, W·m⁻² (to gather new elements from).
+    shot_total: Vec<[f64; 3]>,
     patch_area: Vec<f64>,
     escaped: [f64; 3],
     emitted: f64,
@@ -35,9 +35,9 @@ pub struct Progressive<'a> {
     form_factor_seconds: f64,
 }
 
-impl<'a> Progressive<'a> {
+impl Progressive {
     /// Starts with B = E on every element and U_p = E_p on every patch.
-    pub fn new(mesh: &'a Mesh, ff: &'a dyn FormFactors, options: &SolveOptions) -> Self {
+    pub fn new(mesh: &Mesh, options: &SolveOptions) -> Self {
         let radiosity: Vec<[f64; 3]> = mesh.elements.iter().map(|e| mesh.exitance(e)).collect();
         let patch_area: Vec<f64> = mesh.patches.iter().map(|p| mesh.patch_area(p)).collect();
         let unshot = mesh
@@ -59,8 +59,7 @@ impl<'a> Progressive<'a> {
         let emitted = Solution::emitted_power(mesh).iter().sum();
         let column_bytes = mesh.elements.len().max(1) * 4;
         Self {
-            mesh,
-            ff,
+            shot_total: vec![[0.0; 3]; mesh.patches.len()],
             overshoot: options.overshoot,
             irradiance: vec![[0.0; 3]; mesh.elements.len()],
             radiosity,
@@ -96,7 +95,7 @@ impl<'a> Progressive<'a> {
     }
 
     /// Shoots the patch with the largest unshot power; returns false when nothing is left.
-    pub fn shoot(&mut self) -> bool {
+    pub fn shoot(&mut self, mesh: &Mesh, ff: &dyn FormFactors) -> bool {
         let Some((p, power)) = self
             .unshot
             .iter()
@@ -114,7 +113,7 @@ impl<'a> Progressive<'a> {
         let column: &[f32] = if let Some(c) = self.cache.get(&p) {
             c
         } else {
-            self.ff.column(p, &mut self.column);
+            ff.column(p, &mut self.column);
             if self.cache.len() < self.cache_limit {
                 self.cache.insert(p, self.column.clone());
                 &self.cache[&p]
@@ -126,15 +125,16 @@ impl<'a> Progressive<'a> {
         let shot: [f64; 3] = std::array::from_fn(|c| self.overshoot * self.unshot[p][c]);
         for c in 0..3 {
             self.unshot[p][c] -= shot[c];
+            self.shot_total[p][c] += shot[c];
         }
         let mut landed = 0.0;
-        for (e, el) in self.mesh.elements.iter().enumerate() {
+        for (e, el) in mesh.elements.iter().enumerate() {
             let f = column[e] as f64;
             if f == 0.0 {
                 continue;
             }
             landed += f * el.area;
-            let rho = self.mesh.reflectance(el);
+            let rho = mesh.reflectance(el);
             let q = el.patch.0 as usize;
             let aq = self.patch_area[q];
             for c in 0..3 {
@@ -151,6 +151,44 @@ impl<'a> Progressive<'a> {
         }
         self.shots += 1;
         true
+    }
+
+    /// Moves the state onto a refined mesh (same patches; see [`crate::refine`]): elements
+    /// that were not split keep their values, new children gather everything shot so far,
+    /// H_c = Σ_p F_{c→p} S_p and B_c = E_c + ρ_c H_c, with `ff` built over `refined`.
+    pub fn refine(&mut self, old: &Mesh, refined: &Mesh, ff: &dyn FormFactors) {
+        use rayon::prelude::*;
+        let shot = &self.shot_total;
+        let (radiosity, irradiance): (Vec<[f64; 3]>, Vec<[f64; 3]>) = refined
+            .elements
+            .par_iter()
+            .enumerate()
+            .map_init(
+                || vec![0.0f32; refined.patches.len()],
+                |row, (i, e)| match e.parent {
+                    Some(parent) if old.elements[parent as usize].depth == e.depth => (
+                        self.radiosity[parent as usize],
+                        self.irradiance[parent as usize],
+                    ),
+                    _ => {
+                        ff.row(i, row);
+                        let mut h = [0.0; 3];
+                        for (f, s) in row.iter().zip(shot) {
+                            for c in 0..3 {
+                                h[c] += *f as f64 * s[c];
+                            }
+                        }
+                        let (rho, ex) = (refined.reflectance(e), refined.exitance(e));
+                        (std::array::from_fn(|c| ex[c] + rho[c] * h[c]), h)
+                    }
+                },
+            )
+            .unzip();
+        self.radiosity = radiosity;
+        self.irradiance = irradiance;
+        self.column = vec![0.0; refined.elements.len()];
+        self.cache.clear();
+        self.cache_limit = self.cache_limit * old.elements.len().max(1) / refined.elements.len().max(1);
     }
 
     /// The current (partial) solution.
@@ -179,13 +217,13 @@ pub fn solve(
     progress: &dyn Progress,
 ) -> Result<Solution, SolveError> {
     let start = Instant::now();
-    let mut state = Progressive::new(mesh, ff, options);
+    let mut state = Progressive::new(mesh, options);
     let cap = options
         .max_shots
         .unwrap_or_else(|| 100 * mesh.patches.len().max(1));
     progress.start("progressive", cap as u64);
     while state.shots() < cap && state.unshot_fraction() > options.tolerance {
-        if !state.shoot() {
+        if !state.shoot(mesh, ff) {
             break;
         }
         progress.inc(1);

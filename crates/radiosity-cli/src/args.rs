@@ -1,0 +1,142 @@
+//! Command-line arguments.
+
+use clap::{Args, Parser, Subcommand};
+use glam::DVec3;
+use std::path::PathBuf;
+
+/// Physically based diffuse global illumination by the radiosity method.
+///
+/// Scenes: OBJ+MTL (Kd = reflectance, Ke = emitted radiance in W·m⁻²·sr⁻¹) or our JSON scene
+/// file; with no scene, the built-in Cornell box. Lengths in metres; radiosity and irradiance
+/// in W·m⁻²; power in W; image pixels are radiance L = B/π.
+#[derive(Debug, Parser)]
+#[command(name = "radiosity", version, about, long_about = None)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Solve a scene and render it to a PNG (sRGB) or EXR (linear radiance) image.
+    Render(RenderArgs),
+    /// Solve a scene and write a report (JSON, physical units) and/or the solution.
+    Solve(SolveCmdArgs),
+    /// Compute one form factor with one or every method, or print the accuracy table.
+    Formfactor(crate::cmd_formfactor::FormfactorArgs),
+    /// Solve by progressive refinement and write a frame at each listed shot count, plus a
+    /// labelled contact sheet (the lecture's image sequences).
+    Progressive(crate::cmd_progressive::ProgressiveArgs),
+    /// Run every solver on the same mesh and plot their error against time and iterations.
+    Compare(crate::cmd_compare::CompareArgs),
+}
+
+/// Options that decide how a scene is meshed and solved.
+#[derive(Debug, Clone, Args)]
+pub struct SolveArgs {
+    /// Maximum element edge length in metres (overrides --elements).
+    #[arg(long, value_name = "METRES")]
+    pub max_element_size: Option<f64>,
+    /// Approximate total number of elements [default: 4000].
+    #[arg(long, value_name = "N")]
+    pub elements: Option<usize>,
+    /// Elements per patch edge: patches shoot, elements receive (1 = every element shoots)
+    /// [default: 3].
+    #[arg(long, value_name = "K")]
+    pub patch_subdivision: Option<u32>,
+    /// Solver: direct | jacobi | gauss-seidel | progressive [default: progressive].
+    #[arg(long)]
+    pub solver: Option<String>,
+    /// Form-factor method [default: raycast].
+    #[arg(long)]
+    pub form_factor: Option<String>,
+    /// Relative residual (matrix solvers) or unshot power fraction (progressive) to stop at
+    /// [default: 1e-3].
+    #[arg(long)]
+    pub tolerance: Option<f64>,
+    /// Stop progressive refinement after this many shots.
+    #[arg(long)]
+    pub max_shots: Option<usize>,
+    /// Show no progress bars and no summary.
+    #[arg(long, short)]
+    pub quiet: bool,
+}
+
+#[derive(Debug, Args)]
+pub struct SolveCmdArgs {
+    /// Scene file (.obj or .json); the built-in Cornell box if omitted.
+    pub scene: Option<PathBuf>,
+    /// Write the report (per-object radiosity, irradiance, absorbed power; totals) as JSON.
+    #[arg(long, value_name = "OUT.json")]
+    pub report: Option<PathBuf>,
+    /// Save the solution, to render later with `render --solution`.
+    #[arg(long, value_name = "FILE")]
+    pub save: Option<PathBuf>,
+    #[command(flatten)]
+    pub solve: SolveArgs,
+}
+
+#[derive(Debug, Args)]
+pub struct RenderArgs {
+    /// Scene file (.obj or .json); the built-in Cornell box if omitted.
+    pub scene: Option<PathBuf>,
+    /// Output image: .png (sRGB, 8-bit) or .exr (linear float RGB radiance)
+    /// [default: <scene name>.png].
+    #[arg(short, long, value_name = "FILE")]
+    pub output: Option<PathBuf>,
+    /// Render a saved solution (from `solve --save`) instead of solving a scene.
+    #[arg(long, value_name = "FILE", conflicts_with = "scene")]
+    pub solution: Option<PathBuf>,
+    /// Image width in pixels [default: 512].
+    #[arg(long)]
+    pub width: Option<u32>,
+    /// Image height in pixels [default: 512].
+    #[arg(long)]
+    pub height: Option<u32>,
+    /// Camera position x,y,z in metres [default: the scene's camera].
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub eye: Option<DVec3>,
+    /// Point the camera looks at, x,y,z.
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub target: Option<DVec3>,
+    /// Camera up direction x,y,z.
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub up: Option<DVec3>,
+    /// Vertical field of view in degrees.
+    #[arg(long)]
+    pub fov: Option<f64>,
+    /// Flat shading (one value per element) instead of smooth (Gouraud) shading.
+    #[arg(long)]
+    pub flat: bool,
+    /// Add the ambient term (for unconverged progressive solutions).
+    #[arg(long)]
+    pub ambient: bool,
+    /// Overlay the element edges.
+    #[arg(long)]
+    pub wireframe: bool,
+    /// PNG exposure in stops (pixel = L · 2^exposure before the sRGB curve) [default: 0].
+    #[arg(long, allow_hyphen_values = true)]
+    pub exposure: Option<f64>,
+    /// Anti-aliasing: supersamples per pixel axis (box filter).
+    #[arg(long, default_value_t = 4)]
+    pub samples: u32,
+    #[command(flatten)]
+    pub solve: SolveArgs,
+}
+
+/// Parses "x,y,z" into a finite vector.
+pub fn parse_vec3(s: &str) -> Result<DVec3, String> {
+    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+    if parts.len() != 3 {
+        return Err(format!("expected x,y,z (three comma-separated numbers), got '{s}'"));
+    }
+    let mut v = [0.0; 3];
+    for (slot, p) in v.iter_mut().zip(&parts) {
+        let x: f64 = p.parse().map_err(|_| format!("'{p}' is not a number"))?;
+        if !x.is_finite() {
+            return Err(format!("'{p}' is not a finite number"));
+        }
+        *slot = x;
+    }
+    Ok(DVec3::from_array(v))
+}

@@ -1,0 +1,76 @@
+//! `radiosity formfactor`: one form-factor problem with one or every method, or the accuracy
+//! table of every method on the reference cases.
+
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use radiosity::formfactor::pair::{solve_pair, PairProblem, PairSettings};
+use radiosity::formfactor::table::{accuracy_table, to_markdown};
+use radiosity::formfactor::FormFactorMethod;
+use std::path::PathBuf;
+
+#[derive(Debug, Args)]
+pub struct FormfactorArgs {
+    /// Problem file: {"from": [[x,y,z], ...] or {"point": [x,y,z], "normal": [x,y,z]},
+    /// "to": [[x,y,z], ...], "occluders": [[[x,y,z], ...], ...]}; polygons convex and
+    /// counter-clockwise seen from their front. Prints one JSON line per method:
+    /// {"method", "F_from_to", "F_to_from", "seconds"} (+ "stderr" for monte-carlo).
+    #[arg(required_unless_present = "table", value_name = "FILE.json")]
+    pub file: Option<PathBuf>,
+    /// Method: analytic-point | analytic-polygon | point-sampled | hemicube | raycast |
+    /// monte-carlo, or
+    /// all [default: raycast].
+    #[arg(long, value_name = "NAME")]
+    pub method: Option<String>,
+    /// point-sampled: sub-areas per polygon [default: 4096]; monte-carlo: rays per direction
+    /// [default: 1048576].
+    #[arg(long, value_name = "N")]
+    pub samples: Option<usize>,
+    /// hemicube: pixels along the hemi-cube's top face [default: 128].
+    #[arg(long, value_name = "N")]
+    pub resolution: Option<usize>,
+    /// Seed of the random methods (monte-carlo).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Print, as a Markdown table, every method's maximum and mean error over the reference
+    /// cases (Howell's catalog) and its time per form factor.
+    #[arg(long, conflicts_with = "file")]
+    pub table: bool,
+}
+
+pub fn run(args: FormfactorArgs) -> Result<()> {
+    let methods: Vec<FormFactorMethod> = match args.method.as_deref() {
+        None => {
+            if args.table {
+                FormFactorMethod::ALL.to_vec()
+            } else {
+                vec![FormFactorMethod::default()]
+            }
+        }
+        Some("all") => FormFactorMethod::ALL.to_vec(),
+        Some(name) => vec![name.parse().map_err(anyhow::Error::msg)?],
+    };
+    if args.samples == Some(0) {
+        bail!("--samples must be at least 1");
+    }
+    if args.resolution == Some(0) {
+        bail!("--resolution must be at least 1");
+    }
+    let settings = PairSettings {
+        samples: args.samples,
+        resolution: args.resolution,
+        seed: args.seed,
+    };
+    if args.table {
+        print!("{}", to_markdown(&accuracy_table(&methods, &settings)));
+        return Ok(());
+    }
+    let Some(path) = args.file else {
+        bail!("give a problem file, or --table");
+    };
+    let text = std::fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?;
+    let problem = PairProblem::from_json(&text).with_context(|| format!("loading {}", path.display()))?;
+    for method in methods {
+        println!("{}", solve_pair(&problem, method, &settings).to_json_line());
+    }
+    Ok(())
+}

@@ -1,0 +1,1004 @@
+//! Comparing the solvers on one mesh: error against a reference versus time and versus
+//! iterations (or shots), as a plot (`convergence.svg`, `convergence.png`) and a table
+//! (`table.md`).
+//!
+//! The element × patch form-factor matrix is computed once and shared: Jacobi,
+//! Gauss–Seidel and the direct solve work on the patch system assembled from it
+//! ([`PatchSystem`]), and progressive refinement takes its columns from it
+//! ([`MatrixFormFactors`]), so the comparison measures the solvers and not the form factors.
+//!
+//! Error measure: the relative area-weighted L1 error of the element radiosity's reflected
+//! part,
+//!
+//!   ε(B) = Σ_e A_e Σ_c |B_e,c − B*_e,c| / Σ_e A_e Σ_c (B*_e,c − E_e,c),
+//!
+//! against the reference B*: the direct solution (LU) where it fits in memory, else
+//! Gauss–Seidel iterated to a relative residual of 1e-12. Emission is exact from the start,
+//! so it is left out of the measure. Progressive refinement starts from B_e = E_e (ε = 1);
+//! the matrix solvers iterate on patch radiosity from B_p = E_p and are measured after
+//! gathering to the elements (B_e = E_e + ρ_e Σ_p F_{e→p} B_p), so their iteration 0
+//! already shows the direct light. Started this way, Jacobi, Gauss–Seidel and plain
+//! progressive refinement (ω = 1) all increase every B_e monotonically towards B*
+//! (M ≥ 0, ρ ≥ 0, F ≥ 0), so for them ε never increases; overshooting (ω > 1) and the
+//! ambient term may overshoot B* and are not monotone in general.
+//!
+//! Times are solver work only (form factors excluded, the same for all): for the matrix
+//! solvers, assembling the patch system, the iterations so far and one final gather to the
+//! elements; for progressive refinement, the shots so far (column look-ups included).
+//! Evaluating the error is not timed.
+//!
+//! See also: `radiosity compare`, [`crate::solve`].
+
+use crate::formfactor::{CouplingMatrix, FormFactors};
+use crate::mesh::Mesh;
+use crate::progress::Progress;
+use crate::solve::progressive::Progressive;
+use crate::solve::{direct, gauss_seidel, jacobi, PatchSystem, SolveOptions};
+use rayon::prelude::*;
+use std::fmt::Write as _;
+use std::path::Path;
+use std::sync::OnceLock;
+use std::time::Instant;
+
+/// The error levels the table reports the time to reach.
+pub const THRESHOLDS: [f64; 3] = [1e-2, 1e-3, 1e-4];
+
+/// The bundled font for plot text and sheet labels (DejaVu Sans; licence in
+/// `assets/DejaVuSans.LICENSE`).
+pub(crate) static FONT: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
+
+/// Registers the bundled font with plotters as "sans-serif" (once per process).
+pub(crate) fn register_font() -> Result<(), String> {
+    static REGISTERED: OnceLock<bool> = OnceLock::new();
+    let ok = *REGISTERED.get_or_init(|| {
+        plotters::style::register_font("sans-serif", plotters::style::FontStyle::Normal, FONT).is_ok()
+    });
+    if ok {
+        Ok(())
+    } else {
+        Err("the bundled font could not be loaded".into())
+    }
+}
+
+/// The solvers compared.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Method {
+    /// Dense LU of the patch system ([`direct`]).
+    Direct,
+    Jacobi,
+    GaussSeidel,
+    /// Progressive refinement, ω = 1, plain partial solution.
+    Progressive,
+    /// The same shots, displayed with the ambient term (`display_radiosity(.., true)`).
+    ProgressiveAmbient,
+    /// Progressive refinement shooting ω·unshot.
+    ProgressiveOvershoot(f64),
+}
+
+impl Method {
+    /// The name in the plot legend and the table.
+    pub fn label(self) -> String {
+        match self {
+            Method::Direct => "direct (LU)".into(),
+            Method::Jacobi => "Jacobi".into(),
+            Method::GaussSeidel => "Gauss–Seidel".into(),
+            Method::Progressive => "progressive".into(),
+            Method::ProgressiveAmbient => "progressive + ambient".into(),
+            Method::ProgressiveOvershoot(w) => format!("progressive, overshoot ω = {w}"),
+        }
+    }
+
+    /// What one step is.
+    pub fn step_name(self) -> &'static str {
+        match self {
+            Method::Direct => "solve",
+            Method::Jacobi | Method::GaussSeidel => "iterations",
+            _ => "shots",
+        }
+    }
+
+    fn colour(self) -> plotters::style::RGBColor {
+        use plotters::style::RGBColor;
+        match self {
+            Method::Direct => RGBColor(0, 0, 0),
+            Method::Jacobi => RGBColor(31, 119, 180),
+            Method::GaussSeidel => RGBColor(255, 127, 14),
+            Method::Progressive => RGBColor(44, 160, 44),
+            Method::ProgressiveAmbient => RGBColor(148, 103, 189),
+            Method::ProgressiveOvershoot(_) => RGBColor(214, 39, 40),
+        }
+    }
+}
+
+/// Settings of a comparison.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CompareOptions {
+    /// ω of the overshooting progressive run, in (1, 2).
+    pub overshoot: f64,
+    /// Each run stops once its error ε is at or below this (dimensionless).
+    pub target_error: f64,
+    /// Iteration cap for Jacobi and Gauss–Seidel.
+    pub max_iterations: usize,
+    /// Shot cap for the progressive runs (`None`: 200 shots per patch).
+    pub max_shots: Option<usize>,
+    /// Memory the matrices may use, bytes.
+    pub memory_limit: u64,
+}
+
+impl Default for CompareOptions {
+    fn default() -> Self {
+        Self {
+            // The best of 1.05 … 1.5 on the Cornell box (fewest shots to ε = 1e-4).
+            overshoot: 1.1,
+            target_error: 1e-5,
+            max_iterations: 2000,
+            max_shots: None,
+            memory_limit: SolveOptions::default().memory_limit,
+        }
+    }
+}
+
+/// One point of a convergence history.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Sample {
+    /// Iterations or shots done (0: the starting guess B = E).
+    pub iteration: usize,
+    /// Solver time so far, s.
+    pub seconds: f64,
+    /// Relative error ε (dimensionless; see the module documentation).
+    pub error: f64,
+}
+
+/// One solver's run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Run {
+    pub method: Method,
+    pub samples: Vec<Sample>,
+    /// Why it stopped, or why it was skipped.
+    pub note: Option<String>,
+}
+
+impl Run {
+    /// The first sample at or below `error`.
+    pub fn first_below(&self, error: f64) -> Option<&Sample> {
+        self.samples.iter().find(|s| s.error <= error)
+    }
+
+    pub fn last(&self) -> Option<&Sample> {
+        self.samples.last()
+    }
+}
+
+/// What the errors are measured against.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Reference {
+    /// The direct solution.
+    Direct,
+    /// Gauss–Seidel iterated to this relative residual (the direct solve did not fit).
+    GaussSeidel { iterations: usize, residual: f64 },
+}
+
+/// The result of [`compare`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct Comparison {
+    pub scene: String,
+    pub elements: usize,
+    pub patches: usize,
+    /// The form-factor method and the seconds it took to fill the matrix (shared, untimed
+    /// in the runs).
+    pub form_factor: String,
+    pub form_factor_seconds: f64,
+    pub reference: Reference,
+    /// Direct (when it ran), Jacobi, Gauss–Seidel, progressive, progressive + ambient,
+    /// progressive with overshooting.
+    pub runs: Vec<Run>,
+}
+
+/// Why a comparison could not run.
+#[derive(Debug, thiserror::Error)]
+pub enum CompareError {
+    #[error(
+        "comparing needs the {elements} × {patches} form-factor matrix and the patch system \
+         ({needed_mib} MiB) but only {limit_mib} MiB may be used; use fewer elements or patches \
+         (--elements, --patch-subdivision)"
+    )]
+    OutOfMemory {
+        elements: usize,
+        patches: usize,
+        needed_mib: u64,
+        limit_mib: u64,
+    },
+    #[error("overshoot factor must be in (1, 2), got {0}")]
+    BadOvershoot(f64),
+    #[error("target error must be in (0, 1), got {0}")]
+    BadTarget(f64),
+    #[error("the {0} solver diverged (non-finite radiosity); check that every reflectance is below 1")]
+    Diverged(String),
+    #[error("writing {path}: {message}")]
+    Write { path: String, message: String },
+}
+
+/// Form factors read from a precomputed matrix: progressive refinement's columns without
+/// recomputing them.
+pub struct MatrixFormFactors<'a>(pub &'a CouplingMatrix);
+
+impl FormFactors for MatrixFormFactors<'_> {
+    fn name(&self) -> &'static str {
+        "matrix"
+    }
+
+    fn pair(&self, element: usize, patch: usize) -> f64 {
+        self.0.get(element, patch)
+    }
+
+    fn column(&self, patch: usize, out: &mut [f32]) {
+        let m = self.0.patches;
+        out.par_iter_mut()
+            .with_min_len(4096)
+            .enumerate()
+            .for_each(|(e, f)| *f = self.0.data[e * m + patch]);
+    }
+
+    fn row(&self, element: usize, out: &mut [f32]) {
+        out.copy_from_slice(self.0.row(element));
+    }
+}
+
+/// Element radiosity from patch radiosity: B_e = E_e + ρ_e Σ_q F_{e→q} B_q, W·m⁻².
+fn gather(mesh: &Mesh, k: &CouplingMatrix, b: &[[f64; 3]]) -> Vec<[f64; 3]> {
+    mesh.elements
+        .par_iter()
+        .enumerate()
+        .map(|(i, e)| {
+            let mut h = [0.0; 3];
+            for (f, bq) in k.row(i).iter().zip(b) {
+                for c in 0..3 {
+                    h[c] += *f as f64 * bq[c];
+                }
+            }
+            let (rho, ex) = (mesh.reflectance(e), mesh.exitance(e));
+            std::array::from_fn(|c| ex[c] + rho[c] * h[c])
+        })
+        .collect()
+}
+
+/// ε(B) against a fixed reference (see the module documentation).
+struct ErrorMeasure {
+    reference: Vec<[f64; 3]>,
+    area: Vec<f64>,
+    denominator: f64,
+}
+
+impl ErrorMeasure {
+    fn new(mesh: &Mesh, reference: Vec<[f64; 3]>) -> Self {
+        let area: Vec<f64> = mesh.elements.iter().map(|e| e.area).collect();
+        let reflected: f64 = mesh
+            .elements
+            .iter()
+            .zip(&reference)
+            .map(|(e, b)| {
+                let ex = mesh.exitance(e);
+                e.area * (0..3).map(|c| (b[c] - ex[c]).abs()).sum::<f64>()
+            })
+            .sum();
+        let total: f64 = area
+            .iter()
+            .zip(&reference)
+            .map(|(a, b)| a * (b[0].abs() + b[1].abs() + b[2].abs()))
+            .sum();
+        // Nothing reflected (e.g. no emitter or all black): fall back to the whole radiosity.
+        let denominator = if reflected > 0.0 {
+            reflected
+        } else if total > 0.0 {
+            total
+        } else {
+            1.0
+        };
+        Self {
+            reference,
+            area,
+            denominator,
+        }
+    }
+
+    fn error(&self, b: &[[f64; 3]]) -> f64 {
+        let sum: f64 = self
+            .area
+            .iter()
+            .zip(b.iter().zip(&self.reference))
+            .map(|(a, (x, y))| a * (0..3).map(|c| (x[c] - y[c]).abs()).sum::<f64>())
+            .sum();
+        sum / self.denominator
+    }
+}
+
+/// Runs every solver on `mesh` with form factors from `ff` (computed once into a matrix)
+/// and records each one's error after every iteration or shot.
+pub fn compare(
+    scene: &str,
+    mesh: &Mesh,
+    ff: &dyn FormFactors,
+    options: &CompareOptions,
+    progress: &dyn Progress,
+) -> Result<Comparison, CompareError> {
+    if !(options.overshoot > 1.0 && options.overshoot < 2.0) {
+        return Err(CompareError::BadOvershoot(options.overshoot));
+    }
+    if !(options.target_error > 0.0 && options.target_error < 1.0) {
+        return Err(CompareError::BadTarget(options.target_error));
+    }
+    let (n, m) = (mesh.len(), mesh.patches.len());
+    let mm = m as u128 * m as u128;
+    let needed = CouplingMatrix::bytes_for(n, m) + 3 * 8 * mm;
+    if needed > options.memory_limit as u128 {
+        return Err(CompareError::OutOfMemory {
+            elements: n,
+            patches: m,
+            needed_mib: (needed >> 20).min(u64::MAX as u128) as u64,
+            limit_mib: options.memory_limit >> 20,
+        });
+    }
+    let direct_fits = needed + 2 * 8 * mm <= options.memory_limit as u128;
+
+    let clock = Instant::now();
+    let k = CouplingMatrix::compute(ff, mesh, progress);
+    let form_factor_seconds = clock.elapsed().as_secs_f64();
+    let clock = Instant::now();
+    let system = PatchSystem::assemble(mesh, &k);
+    let assemble = clock.elapsed().as_secs_f64();
+    let clock = Instant::now();
+    let start_b = gather(mesh, &k, &system.exitance);
+    let gather_seconds = clock.elapsed().as_secs_f64();
+
+    let mut runs = Vec::new();
+    let (reference, measure) = if direct_fits {
+        progress.start("direct", 1);
+        let clock = Instant::now();
+        let (b, _, _) = direct::solve(&system);
+        let elements_b = gather(mesh, &k, &b);
+        let seconds = assemble + clock.elapsed().as_secs_f64();
+        progress.finish();
+        check_finite(&elements_b, Method::Direct)?;
+        let measure = ErrorMeasure::new(mesh, elements_b);
+        runs.push(Run {
+            method: Method::Direct,
+            samples: vec![Sample {
+                iteration: 1,
+                seconds,
+                error: 0.0,
+            }],
+            note: Some("the reference".into()),
+        });
+        (Reference::Direct, measure)
+    } else {
+        let tight = SolveOptions {
+            tolerance: 1e-12,
+            max_iterations: 100_000,
+            ..Default::default()
+        };
+        let (b, iterations, residual) = gauss_seidel::solve(&system, &tight, progress);
+        let elements_b = gather(mesh, &k, &b);
+        check_finite(&elements_b, Method::GaussSeidel)?;
+        runs.push(Run {
+            method: Method::Direct,
+            samples: Vec::new(),
+            note: Some(format!(
+                "skipped: the dense LU would need {} MiB more than the {} MiB allowed",
+                ((needed + 16 * mm).saturating_sub(options.memory_limit as u128)) >> 20,
+                options.memory_limit >> 20
+            )),
+        });
+        (Reference::GaussSeidel { iterations, residual }, ErrorMeasure::new(mesh, elements_b))
+    };
+
+    let stop = |e: f64| e <= options.target_error;
+    // Jacobi.
+    {
+        let mut b = system.exitance.clone();
+        let mut solver_seconds = assemble + gather_seconds;
+        let mut samples = vec![Sample {
+            iteration: 0,
+            seconds: solver_seconds,
+            error: measure.error(&start_b),
+        }];
+        progress.start("jacobi", options.max_iterations as u64);
+        for it in 1..=options.max_iterations {
+            let clock = Instant::now();
+            b = jacobi::step(&system, &b);
+            solver_seconds += clock.elapsed().as_secs_f64();
+            let elements_b = gather(mesh, &k, &b);
+            check_finite(&elements_b, Method::Jacobi)?;
+            let error = measure.error(&elements_b);
+            samples.push(Sample {
+                iteration: it,
+                seconds: solver_seconds,
+                error,
+            });
+            progress.inc(1);
+            if stop(error) {
+                break;
+            }
+        }
+        progress.finish();
+        runs.push(finish_run(Method::Jacobi, samples, options));
+    }
+    // Gauss–Seidel.
+    {
+        let mut channels: Vec<Vec<f64>> = (0..3).map(|c| system.exitance.iter().map(|e| e[c]).collect()).collect();
+        let mut solver_seconds = assemble + gather_seconds;
+        let mut samples = vec![Sample {
+            iteration: 0,
+            seconds: solver_seconds,
+            error: measure.error(&start_b),
+        }];
+        progress.start("gauss-seidel", options.max_iterations as u64);
+        for it in 1..=options.max_iterations {
+            let clock = Instant::now();
+            gauss_seidel::sweep(&system, &mut channels);
+            solver_seconds += clock.elapsed().as_secs_f64();
+            let b: Vec<[f64; 3]> = (0..m).map(|p| [channels[0][p], channels[1][p], channels[2][p]]).collect();
+            let elements_b = gather(mesh, &k, &b);
+            check_finite(&elements_b, Method::GaussSeidel)?;
+            let error = measure.error(&elements_b);
+            samples.push(Sample {
+                iteration: it,
+                seconds: solver_seconds,
+                error,
+            });
+            progress.inc(1);
+            if stop(error) {
+                break;
+            }
+        }
+        progress.finish();
+        runs.push(finish_run(Method::GaussSeidel, samples, options));
+    }
+    // Progressive refinement, plain and with the ambient term (the same shots), then with
+    // overshooting.
+    let columns = MatrixFormFactors(&k);
+    let cap = options.max_shots.unwrap_or(200 * m.max(1));
+    for omega in [1.0, options.overshoot] {
+        let solve_options = SolveOptions {
+            overshoot: omega,
+            memory_limit: options.memory_limit.saturating_sub(needed.min(u64::MAX as u128) as u64),
+            ..Default::default()
+        };
+        let clock = Instant::now();
+        let mut state = Progressive::new(mesh, &solve_options);
+        let mut solver_seconds = clock.elapsed().as_secs_f64();
+        let with_ambient = omega == 1.0;
+        let evaluate = |state: &Progressive| -> (f64, f64) {
+            let solution = state.solution(0.0);
+            let plain = measure.error(&solution.radiosity);
+            let ambient = if with_ambient {
+                measure.error(&solution.display_radiosity(mesh, true))
+            } else {
+                plain
+            };
+            (plain, ambient)
+        };
+        let (e0, a0) = evaluate(&state);
+        let mut plain = vec![Sample {
+            iteration: 0,
+            seconds: solver_seconds,
+            error: e0,
+        }];
+        let mut ambient = vec![Sample {
+            iteration: 0,
+            seconds: solver_seconds,
+            error: a0,
+        }];
+        let method = if with_ambient {
+            Method::Progressive
+        } else {
+            Method::ProgressiveOvershoot(omega)
+        };
+        progress.start(if with_ambient { "progressive" } else { "overshooting" }, cap as u64);
+        let mut exhausted = false;
+        while state.shots() < cap {
+            let clock = Instant::now();
+            let shot = state.shoot(mesh, &columns);
+            solver_seconds += clock.elapsed().as_secs_f64();
+            if !shot {
+                exhausted = true;
+                break;
+            }
+            let (e, a) = evaluate(&state);
+            if !(e.is_finite() && a.is_finite()) {
+                return Err(CompareError::Diverged(method.label()));
+            }
+            let iteration = state.shots();
+            plain.push(Sample {
+                iteration,
+                seconds: solver_seconds,
+                error: e,
+            });
+            ambient.push(Sample {
+                iteration,
+                seconds: solver_seconds,
+                error: a,
+            });
+            progress.inc(1);
+            if stop(e) && stop(a) {
+                break;
+            }
+        }
+        progress.finish();
+        let mut run = finish_run(method, plain, options);
+        if exhausted {
+            run.note = Some("nothing left to shoot".into());
+        }
+        runs.push(run);
+        if with_ambient {
+            runs.push(finish_run(Method::ProgressiveAmbient, ambient, options));
+        }
+    }
+    // Keep the order of the legend: progressive, ambient, overshoot.
+    Ok(Comparison {
+        scene: scene.to_owned(),
+        elements: n,
+        patches: m,
+        form_factor: ff.name().to_owned(),
+        form_factor_seconds,
+        reference,
+        runs,
+    })
+}
+
+fn check_finite(b: &[[f64; 3]], method: Method) -> Result<(), CompareError> {
+    if b.iter().flatten().all(|x| x.is_finite()) {
+        Ok(())
+    } else {
+        Err(CompareError::Diverged(method.label()))
+    }
+}
+
+fn finish_run(method: Method, samples: Vec<Sample>, options: &CompareOptions) -> Run {
+    let last = samples.last().copied();
+    let note = match last {
+        Some(s) if s.error <= options.target_error => None,
+        Some(s) => Some(format!(
+            "stopped at the cap after {} {} (error {:.1e})",
+            s.iteration,
+            method.step_name(),
+            s.error
+        )),
+        None => None,
+    };
+    Run { method, samples, note }
+}
+
+/// Seconds in a readable unit ("0.42 ms", "12.3 ms", "1.25 s").
+pub fn format_seconds(s: f64) -> String {
+    if s < 1e-3 {
+        format!("{:.1} µs", s * 1e6)
+    } else if s < 1.0 {
+        format!("{:.2} ms", s * 1e3)
+    } else {
+        format!("{s:.2} s")
+    }
+}
+
+impl Comparison {
+    /// The run of a method, if it ran.
+    pub fn run(&self, method: Method) -> Option<&Run> {
+        self.runs.iter().find(|r| r.method == method)
+    }
+
+    /// `table.md`: per solver, the time (and iterations or shots) to reach each of
+    /// [`THRESHOLDS`], and the final error.
+    pub fn table_markdown(&self) -> String {
+        let mut t = String::new();
+        let _ = writeln!(t, "# Solver comparison: {}\n", self.scene);
+        let reference = match &self.reference {
+            Reference::Direct => "the direct solution B* (dense LU of the patch system)".to_owned(),
+            Reference::GaussSeidel { iterations, residual } => format!(
+                "a converged solution B*: Gauss–Seidel after {iterations} iterations (relative \
+                 residual {residual:.1e}); the direct solve did not fit in memory"
+            ),
+        };
+        let _ = writeln!(
+            t,
+            "- Mesh: {} elements, {} patches. Form factors ({}) computed once in {} and shared \
+             by every solver; not included in the times below.",
+            self.elements,
+            self.patches,
+            self.form_factor,
+            format_seconds(self.form_factor_seconds)
+        );
+        let _ = writeln!(
+            t,
+            "- Error ε: relative area-weighted L1 error of the element radiosity's reflected \
+             part against {reference}: ε = Σ_e A_e Σ_c |B_e,c − B*_e,c| / \
+             Σ_e A_e Σ_c (B*_e,c − E_e,c)."
+        );
+        let _ = writeln!(
+            t,
+            "- Start: progressive refinement starts at B = E (ε = 1); the matrix solvers \
+             iterate on patch radiosity from B_p = E_p and are measured after a gather to the \
+             elements, so their iteration 0 already has the direct light."
+        );
+        let _ = writeln!(
+            t,
+            "- Times: solver work only — matrix solvers: patch-system assembly + iterations + \
+             one gather to the elements; progressive: the shots. Evaluating ε is not timed.\n"
+        );
+        let _ = writeln!(
+            t,
+            "| solver | ε ≤ 1e-2 | ε ≤ 1e-3 | ε ≤ 1e-4 | final ε | steps run | note |"
+        );
+        let _ = writeln!(t, "|---|---|---|---|---|---|---|");
+        for run in &self.runs {
+            let mut cells = Vec::new();
+            for th in THRESHOLDS {
+                cells.push(match run.first_below(th) {
+                    Some(s) if run.method == Method::Direct => format_seconds(s.seconds),
+                    Some(s) => format!("{} ({} {})", format_seconds(s.seconds), s.iteration, run.method.step_name()),
+                    None if run.samples.is_empty() => "—".into(),
+                    None => "not reached".into(),
+                });
+            }
+            let (final_error, steps) = match run.last() {
+                Some(_) if run.method == Method::Direct => ("0 (reference)".to_owned(), "1 solve".to_owned()),
+                Some(s) => (format!("{:.1e}", s.error), format!("{} {}", s.iteration, run.method.step_name())),
+                None => ("—".into(), "—".into()),
+            };
+            let _ = writeln!(
+                t,
+                "| {} | {} | {} | {} | {} | {} | {} |",
+                run.method.label(),
+                cells[0],
+                cells[1],
+                cells[2],
+                final_error,
+                steps,
+                run.note.as_deref().unwrap_or("")
+            );
+        }
+        t
+    }
+
+    /// Writes `table.md`, `convergence.svg` and `convergence.png` into `dir` (which must
+    /// exist), each atomically.
+    pub fn write(&self, dir: &Path) -> Result<(), CompareError> {
+        use plotters::prelude::{BitMapBackend, IntoDrawingArea, SVGBackend};
+        let table = self.table_markdown();
+        let path = dir.join("table.md");
+        crate::io::atomic::write_atomically(&path, |w| w.write_all(table.as_bytes())).map_err(|e| write_error(&path, e))?;
+
+        register_font().map_err(|e| write_error(&path, e))?;
+        let svg_path = dir.join("convergence.svg");
+        let mut svg = String::new();
+        {
+            let root = SVGBackend::with_string(&mut svg, PLOT_SIZE).into_drawing_area();
+            self.draw(root).map_err(|e| write_error(&svg_path, e))?;
+        }
+        crate::io::atomic::write_atomically(&svg_path, |w| w.write_all(svg.as_bytes()))
+            .map_err(|e| write_error(&svg_path, e))?;
+
+        let png_path = dir.join("convergence.png");
+        let mut buf = vec![255u8; PLOT_SIZE.0 as usize * PLOT_SIZE.1 as usize * 3];
+        {
+            let root = BitMapBackend::with_buffer(&mut buf, PLOT_SIZE).into_drawing_area();
+            self.draw(root).map_err(|e| write_error(&png_path, e))?;
+        }
+        let image = image::RgbImage::from_raw(PLOT_SIZE.0, PLOT_SIZE.1, buf)
+            .ok_or_else(|| write_error(&png_path, "plot buffer size"))?;
+        crate::sequence::write_png(&image, &png_path).map_err(|e| write_error(&png_path, e))?;
+        Ok(())
+    }
+
+    /// Draws the two panels: error versus time and versus iterations/shots, log–log.
+    fn draw<DB: plotters::prelude::DrawingBackend>(
+        &self,
+        root: plotters::drawing::DrawingArea<DB, plotters::coord::Shift>,
+    ) -> Result<(), String>
+    where
+        DB::ErrorType: 'static,
+    {
+        use plotters::prelude::*;
+        let err = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
+        root.fill(&WHITE).map_err(err)?;
+        let title = format!(
+            "{}: {} elements, {} patches — error against {}",
+            self.scene,
+            self.elements,
+            self.patches,
+            match self.reference {
+                Reference::Direct => "the direct solution",
+                Reference::GaussSeidel { .. } => "a converged Gauss–Seidel solution",
+            }
+        );
+        let root = root.titled(&title, ("sans-serif", 22)).map_err(err)?;
+        let (left, right) = root.split_horizontally(PLOT_SIZE.0 / 2);
+
+        // Ranges over every plotted (positive) value.
+        let iterative = || self.runs.iter().filter(|r| r.method != Method::Direct);
+        let points = || iterative().flat_map(|r| r.samples.iter());
+        let min_error = points()
+            .map(|s| s.error)
+            .filter(|e| *e > 0.0)
+            .fold(f64::INFINITY, f64::min)
+            .min(1e-4);
+        let max_error = points().map(|s| s.error).fold(1.0, f64::max);
+        let y_range = (min_error / 2.0)..(max_error * 1.5);
+        let mut t_min = points()
+            .map(|s| s.seconds)
+            .filter(|t| *t > 0.0)
+            .fold(f64::INFINITY, f64::min);
+        let mut t_max = points().map(|s| s.seconds).fold(0.0, f64::max);
+        if let Some(d) = self.run(Method::Direct).and_then(Run::last) {
+            t_min = t_min.min(d.seconds);
+            t_max = t_max.max(d.seconds);
+        }
+        if !(t_min.is_finite() && t_max > t_min) {
+            t_min = 1e-6;
+            t_max = t_max.max(1e-3);
+        }
+        let x_time = (t_min / 1.5)..(t_max * 1.5);
+        let max_steps = points().map(|s| s.iteration).max().unwrap_or(1).max(2) as f64;
+        let x_steps = 1.0..(max_steps * 1.5);
+
+        let mut time_chart = ChartBuilder::on(&left)
+            .margin(12)
+            .margin_right(28)
+            .x_label_area_size(48)
+            .y_label_area_size(70)
+            .build_cartesian_2d(x_time.log_scale(), y_range.clone().log_scale())
+            .map_err(err)?;
+        time_chart
+            .configure_mesh()
+            .x_desc("solver time (s, log scale)")
+            .y_desc("relative L1 error ε (log scale)")
+            .x_label_formatter(&|x| format!("{x:.0e}"))
+            .y_label_formatter(&|y| format!("{y:.0e}"))
+            .label_style(("sans-serif", 14))
+            .axis_desc_style(("sans-serif", 16))
+            .draw()
+            .map_err(err)?;
+        let mut steps_chart = ChartBuilder::on(&right)
+            .margin(12)
+            .margin_right(28)
+            .x_label_area_size(48)
+            .y_label_area_size(70)
+            .build_cartesian_2d(x_steps.log_scale(), y_range.clone().log_scale())
+            .map_err(err)?;
+        steps_chart
+            .configure_mesh()
+            .x_desc("iterations (Jacobi, Gauss–Seidel) or shots (progressive), log scale")
+            .y_desc("relative L1 error ε (log scale)")
+            .x_label_formatter(&|x| format!("{x:.0}"))
+            .y_label_formatter(&|y| format!("{y:.0e}"))
+            .label_style(("sans-serif", 14))
+            .axis_desc_style(("sans-serif", 16))
+            .draw()
+            .map_err(err)?;
+
+        for run in &self.runs {
+            let colour = run.method.colour();
+            let style = ShapeStyle::from(&colour).stroke_width(2);
+            if run.method == Method::Direct {
+                // The direct solve is one point in time: a vertical line at its time.
+                if let Some(s) = run.last() {
+                    let line = vec![(s.seconds, y_range.start), (s.seconds, y_range.end)];
+                    time_chart
+                        .draw_series(DashedLineSeries::new(line, 6, 4, style))
+                        .map_err(err)?
+                        .label(format!("{} ({})", run.method.label(), format_seconds(s.seconds)))
+                        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], style));
+                }
+                continue;
+            }
+            let by_time: Vec<(f64, f64)> = run
+                .samples
+                .iter()
+                .filter(|s| s.seconds > 0.0 && s.error > 0.0)
+                .map(|s| (s.seconds, s.error))
+                .collect();
+            time_chart
+                .draw_series(LineSeries::new(by_time, style))
+                .map_err(err)?
+                .label(run.method.label())
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], style));
+            let by_steps: Vec<(f64, f64)> = run
+                .samples
+                .iter()
+                .filter(|s| s.iteration > 0 && s.error > 0.0)
+                .map(|s| (s.iteration as f64, s.error))
+                .collect();
+            steps_chart
+                .draw_series(LineSeries::new(by_steps, style))
+                .map_err(err)?
+                .label(run.method.label())
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], style));
+        }
+        for chart in [&mut time_chart, &mut steps_chart] {
+            chart
+                .configure_series_labels()
+                .position(SeriesLabelPosition::LowerLeft)
+                .label_font(("sans-serif", 14))
+                .background_style(WHITE.mix(0.85))
+                .border_style(BLACK)
+                .draw()
+                .map_err(err)?;
+        }
+        root.present().map_err(err)?;
+        Ok(())
+    }
+}
+
+/// Size of the convergence plot, pixels (two panels side by side).
+const PLOT_SIZE: (u32, u32) = (1400, 620);
+
+fn write_error(path: &Path, e: impl std::fmt::Display) -> CompareError {
+    CompareError::Write {
+        path: path.display().to_string(),
+        message: e.to_string(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cornell::cornell_box;
+    use crate::formfactor::{FormFactorMethod, Visibility};
+    use crate::mesh::MeshOptions;
+    use crate::progress::NoProgress;
+
+    fn mesh() -> &'static Mesh {
+        static M: OnceLock<Mesh> = OnceLock::new();
+        M.get_or_init(|| {
+            let options = MeshOptions {
+                elements: 400,
+                ..Default::default()
+            };
+            Mesh::build(&cornell_box(), &options).unwrap()
+        })
+    }
+
+    fn run_with(options: &CompareOptions) -> Result<Comparison, CompareError> {
+        let mesh = mesh();
+        let visibility = Visibility::new(mesh);
+        let ff = FormFactorMethod::default().engine(mesh, &visibility);
+        compare("cornell", mesh, ff.as_ref(), options, &NoProgress)
+    }
+
+    /// The Cornell box at ~400 elements, every solver (shared by the tests below).
+    fn comparison() -> &'static Comparison {
+        static C: OnceLock<Comparison> = OnceLock::new();
+        C.get_or_init(|| run_with(&CompareOptions::default()).unwrap())
+    }
+
+    fn errors(run: &Run) -> Vec<f64> {
+        run.samples.iter().map(|s| s.error).collect()
+    }
+
+    #[test]
+    fn every_solver_converges_to_the_direct_solution() {
+        let c = comparison();
+        assert_eq!(c.reference, Reference::Direct);
+        assert_eq!(c.runs.len(), 6);
+        let target = CompareOptions::default().target_error;
+        for run in &c.runs {
+            let last = run.last().unwrap();
+            assert!(last.error <= target, "{}: final error {}", run.method.label(), last.error);
+            assert!(run.note.is_none() || run.method == Method::Direct, "{:?}", run.note);
+            // Time only moves forward.
+            assert!(run.samples.windows(2).all(|w| w[1].seconds >= w[0].seconds));
+        }
+        // Shooting starts at B = E, where the reflected part is all missing: ε = 1.
+        for m in [Method::Progressive, Method::ProgressiveOvershoot(1.1)] {
+            let first = c.run(m).unwrap().samples[0];
+            assert_eq!(first.iteration, 0);
+            assert!((first.error - 1.0).abs() < 1e-12, "{m:?}: {}", first.error);
+        }
+        // The matrix solvers start from B_p = E_p gathered once to the elements: the direct
+        // light is there, the interreflections are not (in the Cornell box they are about
+        // half of the reflected radiosity).
+        for m in [Method::Jacobi, Method::GaussSeidel] {
+            let first = c.run(m).unwrap().samples[0];
+            assert_eq!(first.iteration, 0);
+            assert!(first.error > 0.2 && first.error < 0.8, "{m:?}: {}", first.error);
+        }
+    }
+
+    #[test]
+    fn errors_never_increase_for_monotone_solvers() {
+        // From B = E with M, ρ, F ≥ 0, Jacobi, Gauss–Seidel and plain shooting only ever add
+        // non-negative amounts to every B_e, approaching B* from below, so ε cannot increase.
+        // Slack: 1e-9 relative, for the f64 rounding of sums over ~400 elements.
+        let c = comparison();
+        for m in [Method::Jacobi, Method::GaussSeidel, Method::Progressive] {
+            let e = errors(c.run(m).unwrap());
+            for (k, w) in e.windows(2).enumerate() {
+                assert!(w[1] <= w[0] * (1.0 + 1e-9), "{m:?}: error rose from {} to {} at step {}", w[0], w[1], k + 1);
+            }
+            assert!(e.len() > 3);
+        }
+        // Hence the table's times to 1e-2, 1e-3, 1e-4 increase along each run.
+        for run in &c.runs {
+            let t: Vec<f64> = THRESHOLDS.iter().map(|&th| run.first_below(th).unwrap().seconds).collect();
+            assert!(t[0] <= t[1] && t[1] <= t[2], "{}: {t:?}", run.method.label());
+        }
+    }
+
+    #[test]
+    fn solvers_rank_as_the_theory_says() {
+        let c = comparison();
+        let steps = |m: Method, th: f64| c.run(m).unwrap().first_below(th).unwrap().iteration;
+        // Gauss–Seidel uses each new value at once: fewer sweeps than Jacobi (about half).
+        for th in THRESHOLDS {
+            assert!(steps(Method::GaussSeidel, th) < steps(Method::Jacobi, th), "at {th}");
+        }
+        // Mild overshooting (ω = 1.1) saves shots over plain shooting at every threshold.
+        for th in THRESHOLDS {
+            assert!(
+                steps(Method::ProgressiveOvershoot(1.1), th) < steps(Method::Progressive, th),
+                "at {th}"
+            );
+        }
+        // The ambient term brings early partial solutions closer: after 8 and 16 shots its
+        // displayed error is below the plain partial solution's.
+        let plain = errors(c.run(Method::Progressive).unwrap());
+        let ambient = errors(c.run(Method::ProgressiveAmbient).unwrap());
+        for shots in [0, 8, 16] {
+            assert!(ambient[shots] < plain[shots], "after {shots} shots: {} vs {}", ambient[shots], plain[shots]);
+        }
+    }
+
+    #[test]
+    fn table_and_plots_are_written_atomically() {
+        let c = comparison();
+        let dir = tempfile::tempdir().unwrap();
+        c.write(dir.path()).unwrap();
+        let mut names: Vec<String> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().into_string().unwrap())
+            .collect();
+        names.sort();
+        assert_eq!(names, ["convergence.png", "convergence.svg", "table.md"], "no temporary files left");
+        let table = std::fs::read_to_string(dir.path().join("table.md")).unwrap();
+        for run in &c.runs {
+            assert!(table.contains(&format!("| {} |", run.method.label())), "{table}");
+        }
+        assert!(table.contains("ε ≤ 1e-4"));
+        let png = image::open(dir.path().join("convergence.png")).unwrap();
+        assert_eq!((png.width(), png.height()), PLOT_SIZE);
+        // Not blank: the lines are drawn in colour.
+        let rgb = png.to_rgb8();
+        let green = Method::Progressive.colour();
+        assert!(rgb.pixels().filter(|p| p.0 == [green.0, green.1, green.2]).count() > 100);
+        let svg = std::fs::read_to_string(dir.path().join("convergence.svg")).unwrap();
+        assert!(svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>"));
+        assert!(svg.contains("Gauss–Seidel") && svg.contains("solver time (s, log scale)"));
+    }
+
+    #[test]
+    fn without_room_for_the_lu_the_reference_is_a_converged_gauss_seidel() {
+        let mesh = mesh();
+        let (n, m) = (mesh.len() as u64, mesh.patches.len() as u64);
+        // Room for the matrix and the patch system, but not for the dense LU.
+        let limit = n * m * 4 + 24 * m * m + 8 * m * m;
+        let c = run_with(&CompareOptions {
+            memory_limit: limit,
+            ..Default::default()
+        })
+        .unwrap();
+        assert!(matches!(c.reference, Reference::GaussSeidel { residual, .. } if residual <= 1e-12));
+        let direct = c.run(Method::Direct).unwrap();
+        assert!(direct.samples.is_empty() && direct.note.as_deref().unwrap().starts_with("skipped"));
+        // The same answer as the direct reference: the runs match the direct comparison's.
+        let jacobi = |c: &Comparison| c.run(Method::Jacobi).unwrap().first_below(1e-3).unwrap().iteration;
+        assert_eq!(jacobi(&c), jacobi(comparison()));
+        assert!(c.table_markdown().contains("skipped"));
+
+        let err = run_with(&CompareOptions {
+            memory_limit: 1 << 10,
+            ..Default::default()
+        })
+        .err()
+        .unwrap();
+        assert!(matches!(err, CompareError::OutOfMemory { .. }));
+        assert!(err.to_string().contains("--elements"));
+    }
+}

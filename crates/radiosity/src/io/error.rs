@@ -1,0 +1,162 @@
+//! Errors from reading and writing scenes.
+//!
+//! Every variant says where the problem is: the file (as the user named it), the line when
+//! the format has lines we can point at, and the object or material involved. Messages read
+//! as `file: line N: what is wrong`, so the binary can prefix its own context ("loading
+//! scenes/cornell.obj: …") without repeating it.
+//!
+//! See also: [`crate::io::obj`] and [`crate::io::scene_file`], which raise them.
+
+use crate::geometry::GeometryError;
+use std::fmt;
+
+/// A place in an input file: the file as the user named it, and the 1-based line if known.
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub struct Location {
+    pub file: String,
+    pub line: Option<usize>,
+}
+
+impl Location {
+    pub fn new(file: impl Into<String>, line: Option<usize>) -> Self {
+        Self {
+            file: file.into(),
+            line,
+        }
+    }
+
+    /// A location with a known line.
+    pub fn line(file: impl Into<String>, line: usize) -> Self {
+        Self::new(file, Some(line))
+    }
+
+    /// A whole-file location (no line).
+    pub fn file(file: impl Into<String>) -> Self {
+        Self::new(file, None)
+    }
+}
+
+impl fmt::Display for Location {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.line {
+            Some(line) => write!(f, "{}: line {line}", self.file),
+            None => f.write_str(&self.file),
+        }
+    }
+}
+
+/// Why a scene could not be loaded or saved.
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    /// The file could not be opened or read (missing, unreadable, not UTF-8).
+    #[error("{file}: cannot read: {source}")]
+    Read {
+        file: String,
+        #[source]
+        source: std::io::Error,
+    },
+    /// The file could not be written.
+    #[error("{file}: cannot write: {source}")]
+    Write {
+        file: String,
+        #[source]
+        source: std::io::Error,
+    },
+    /// A line that does not parse: a value that is not a number, the wrong number of values,
+    /// a malformed face token.
+    #[error("{at}: {message}")]
+    Syntax { at: Location, message: String },
+    /// A face refers to a vertex (or texture coordinate, or normal) that does not exist.
+    /// `index` is as written in the file (negative for relative indices).
+    #[error("{at}: face refers to {what} {index}, file has {count}")]
+    IndexOutOfRange {
+        at: Location,
+        what: &'static str,
+        index: i64,
+        count: usize,
+    },
+    /// A vertex coordinate is NaN or infinite.
+    #[error("{at}: vertex coordinate {value} is not finite")]
+    NonFiniteCoordinate { at: Location, value: String },
+    /// A face is not a usable polygon (degenerate, too few vertices, absurd coordinates,
+    /// non-planar with more than four vertices).
+    #[error("{at}: object '{object}': {source}")]
+    Geometry {
+        at: Location,
+        object: String,
+        #[source]
+        source: GeometryError,
+    },
+    /// An OBJ `mtllib` names a file that cannot be read.
+    #[error("{at}: cannot read material library '{library}': {source}")]
+    MissingMaterialLibrary {
+        at: Location,
+        library: String,
+        #[source]
+        source: std::io::Error,
+    },
+    /// A surface names a material that is not defined.
+    #[error("{at}: object '{object}': material '{material}' is not defined")]
+    UnknownMaterial {
+        at: Location,
+        object: String,
+        material: String,
+    },
+    /// An OBJ face comes before any `usemtl`.
+    #[error("{at}: object '{object}': face has no material (no 'usemtl' before it)")]
+    NoMaterial { at: Location, object: String },
+    /// A material with unphysical or inconsistent values (reflectance outside [0, 1),
+    /// negative emission, defined twice).
+    #[error("{at}: material '{material}': {problem}")]
+    Material {
+        at: Location,
+        material: String,
+        problem: String,
+    },
+    /// A JSON scene file that is not valid JSON or does not match the format; `line` and
+    /// `column` are 1-based, as serde_json reports them.
+    #[error("{file}: line {line}, column {column}: {message}")]
+    Json {
+        file: String,
+        line: usize,
+        column: usize,
+        message: String,
+    },
+    /// A value that parses but makes no sense (a camera looking nowhere, a zero image size).
+    #[error("{at}: {message}")]
+    Invalid { at: Location, message: String },
+    /// The file extension is not one we can load.
+    #[error("{file}: unknown scene format (expected a .obj or .json file)")]
+    UnknownFormat { file: String },
+    /// The input defines no surfaces at all.
+    #[error("{file}: scene has no surfaces")]
+    Empty { file: String },
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn messages_name_file_line_and_object() {
+        let e = SceneError::IndexOutOfRange {
+            at: Location::line("scenes/cornell.obj", 12),
+            what: "vertex",
+            index: 40,
+            count: 38,
+        };
+        assert_eq!(
+            e.to_string(),
+            "scenes/cornell.obj: line 12: face refers to vertex 40, file has 38"
+        );
+        let e = SceneError::Geometry {
+            at: Location::file("a.json"),
+            object: "floor".into(),
+            source: GeometryError::NonConvex,
+        };
+        assert_eq!(
+            e.to_string(),
+            "a.json: object 'floor': polygon is not convex"
+        );
+    }
+}

@@ -1,0 +1,9 @@
+//! Reading and writing: scenes (OBJ+MTL, our JSON scene file), solutions, atomic output.
+
+pub mod atomic;
+pub mod error;
+pub mod obj;
+pub mod scene_file;
+pub mod solution_file;
+
+pub use error::SceneError;
