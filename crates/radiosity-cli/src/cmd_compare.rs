@@ -46,10 +46,16 @@ pub fn run(args: CompareArgs) -> Result<()> {
         memory_limit: defaults.memory_limit,
     };
     if !(options.overshoot > 1.0 && options.overshoot < 2.0) {
-        bail!("--overshoot must be between 1 and 2 (exclusive), got {}", options.overshoot);
+        bail!(
+            "--overshoot must be between 1 and 2 (exclusive), got {}",
+            options.overshoot
+        );
     }
     if !(options.target_error > 0.0 && options.target_error < 1.0) {
-        bail!("--target-error must be between 0 and 1 (exclusive), got {}", options.target_error);
+        bail!(
+            "--target-error must be between 0 and 1 (exclusive), got {}",
+            options.target_error
+        );
     }
     if options.max_iterations == 0 || options.max_shots == Some(0) {
         bail!("--max-iterations and --max-shots must be at least 1");

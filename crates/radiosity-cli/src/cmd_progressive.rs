@@ -167,7 +167,11 @@ pub fn run(args: ProgressiveArgs) -> Result<()> {
     let ambient = args.ambient || file_settings.ambient.unwrap_or(false);
     let view = View {
         camera: camera(&args.view, &scene)?,
-        shading: if args.view.flat { Shading::Flat } else { Shading::Smooth },
+        shading: if args.view.flat {
+            Shading::Flat
+        } else {
+            Shading::Smooth
+        },
         wireframe: args.view.wireframe,
         render: RenderOptions {
             width,
@@ -204,7 +208,10 @@ pub fn run(args: ProgressiveArgs) -> Result<()> {
         }
         if !quiet {
             let converged = if r.converged_early() {
-                format!(" — converged after {} shots (unshot below the tolerance)", r.shots)
+                format!(
+                    " — converged after {} shots (unshot below the tolerance)",
+                    r.shots
+                )
             } else {
                 String::new()
             };
@@ -236,7 +243,8 @@ pub fn run(args: ProgressiveArgs) -> Result<()> {
 /// Creates the output directory and checks that files can be created in it, before any
 /// work is done.
 pub fn prepare_output_dir(dir: &Path) -> Result<()> {
-    std::fs::create_dir_all(dir).with_context(|| format!("creating output directory {}", dir.display()))?;
+    std::fs::create_dir_all(dir)
+        .with_context(|| format!("creating output directory {}", dir.display()))?;
     let probe = dir.join(format!(".radiosity-write-test-{}", std::process::id()));
     std::fs::OpenOptions::new()
         .write(true)
@@ -257,7 +265,10 @@ fn camera(args: &ViewArgs, scene: &Scene) -> Result<Camera> {
         fov_deg: args.fov.unwrap_or(base.fov_deg),
     };
     if !(camera.fov_deg > 0.0 && camera.fov_deg < 180.0) {
-        bail!("--fov must be between 0 and 180 degrees, got {}", camera.fov_deg);
+        bail!(
+            "--fov must be between 0 and 180 degrees, got {}",
+            camera.fov_deg
+        );
     }
     let look = camera.target - camera.eye;
     if look.length() < 1e-12 {

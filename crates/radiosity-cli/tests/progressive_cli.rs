@@ -35,13 +35,34 @@ fn assert_fails_cleanly(o: &Output, needles: &[&str]) {
 }
 
 /// Small, fast settings: a coarse Cornell box, tiny frames.
-const FAST: &[&str] = &["--elements", "300", "--width", "40", "--height", "30", "--samples", "2"];
+const FAST: &[&str] = &[
+    "--elements",
+    "300",
+    "--width",
+    "40",
+    "--height",
+    "30",
+    "--samples",
+    "2",
+];
 
 #[test]
 fn progressive_writes_every_frame_and_the_sheet() {
     let d = tempfile::tempdir().unwrap();
     let out = d.path().join("seq");
-    let o = run(&[&["progressive", "-o", out.to_str().unwrap(), "--frames", "0,2,5", "--hdr", "--ambient"], FAST].concat());
+    let o = run(&[
+        &[
+            "progressive",
+            "-o",
+            out.to_str().unwrap(),
+            "--frames",
+            "0,2,5",
+            "--hdr",
+            "--ambient",
+        ],
+        FAST,
+    ]
+    .concat());
     assert!(o.status.success(), "{}", stderr(&o));
     assert_eq!(
         files(&out),
@@ -77,10 +98,25 @@ fn progressive_writes_every_frame_and_the_sheet() {
 fn progressive_says_when_it_converged_before_the_frame() {
     let d = tempfile::tempdir().unwrap();
     let out = d.path().join("seq");
-    let o = run(&[&["progressive", "-o", out.to_str().unwrap(), "--frames", "0,1000000", "--tolerance", "1e-2"], FAST].concat());
+    let o = run(&[
+        &[
+            "progressive",
+            "-o",
+            out.to_str().unwrap(),
+            "--frames",
+            "0,1000000",
+            "--tolerance",
+            "1e-2",
+        ],
+        FAST,
+    ]
+    .concat());
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(stderr(&o).contains("converged after"), "{}", stderr(&o));
-    assert_eq!(files(&out), ["frame_0000.png", "frame_1000000.png", "sheet.png"]);
+    assert_eq!(
+        files(&out),
+        ["frame_0000.png", "frame_1000000.png", "sheet.png"]
+    );
 }
 
 #[test]
@@ -88,20 +124,55 @@ fn progressive_adaptive_with_wireframe_runs() {
     let d = tempfile::tempdir().unwrap();
     let out = d.path().join("seq");
     let o = run(&[
-        &["progressive", "-o", out.to_str().unwrap(), "--frames", "0,4,16", "--adaptive", "--wireframe"][..],
-        &["--refine-threshold", "0.05", "--max-depth", "2", "--overshoot", "1.1"],
+        &[
+            "progressive",
+            "-o",
+            out.to_str().unwrap(),
+            "--frames",
+            "0,4,16",
+            "--adaptive",
+            "--wireframe",
+        ][..],
+        &[
+            "--refine-threshold",
+            "0.05",
+            "--max-depth",
+            "2",
+            "--overshoot",
+            "1.1",
+        ],
         FAST,
     ]
     .concat());
     assert!(o.status.success(), "{}", stderr(&o));
-    assert_eq!(files(&out), ["frame_0000.png", "frame_0004.png", "frame_0016.png", "sheet.png"]);
+    assert_eq!(
+        files(&out),
+        [
+            "frame_0000.png",
+            "frame_0004.png",
+            "frame_0016.png",
+            "sheet.png"
+        ]
+    );
 }
 
 #[test]
 fn progressive_rejects_bad_frame_lists_before_writing_anything() {
     let d = tempfile::tempdir().unwrap();
     let out = d.path().join("seq");
-    let o = |frames: &str| run(&[&["progressive", "-o", out.to_str().unwrap(), "--frames", frames], FAST].concat());
+    let o = |frames: &str| {
+        run(&[
+            &[
+                "progressive",
+                "-o",
+                out.to_str().unwrap(),
+                "--frames",
+                frames,
+            ],
+            FAST,
+        ]
+        .concat())
+    };
     assert_fails_cleanly(&o("0,8,x"), &["--frames", "'x'"]);
     assert_fails_cleanly(&o("0,16,8"), &["--frames", "increasing", "16", "8"]);
     assert_fails_cleanly(&o(""), &["--frames"]);
@@ -112,17 +183,33 @@ fn progressive_rejects_bad_frame_lists_before_writing_anything() {
 fn progressive_rejects_bad_options() {
     let d = tempfile::tempdir().unwrap();
     let out = d.path().join("seq");
-    let base = ["progressive", "-o", out.to_str().unwrap(), "--frames", "0,1"];
-    assert_fails_cleanly(&run(&[&base[..], &["--overshoot", "2.5"], FAST].concat()), &["--overshoot", "2.5"]);
+    let base = [
+        "progressive",
+        "-o",
+        out.to_str().unwrap(),
+        "--frames",
+        "0,1",
+    ];
+    assert_fails_cleanly(
+        &run(&[&base[..], &["--overshoot", "2.5"], FAST].concat()),
+        &["--overshoot", "2.5"],
+    );
     assert_fails_cleanly(
         &run(&[&base[..], &["--adaptive", "--refine-threshold", "0"], FAST].concat()),
         &["--refine-threshold"],
     );
-    assert_fails_cleanly(&run(&[&base[..], &["--tolerance", "0"], FAST].concat()), &["--tolerance"]);
+    assert_fails_cleanly(
+        &run(&[&base[..], &["--tolerance", "0"], FAST].concat()),
+        &["--tolerance"],
+    );
     // The output "directory" is a file.
     let file = d.path().join("a-file");
     std::fs::write(&file, "x").unwrap();
-    let o = run(&[&["progressive", "-o", file.to_str().unwrap(), "--frames", "0"], FAST].concat());
+    let o = run(&[
+        &["progressive", "-o", file.to_str().unwrap(), "--frames", "0"],
+        FAST,
+    ]
+    .concat());
     assert_fails_cleanly(&o, &["a-file"]);
     assert_eq!(std::fs::read_to_string(&file).unwrap(), "x");
 }
@@ -131,14 +218,34 @@ fn progressive_rejects_bad_options() {
 fn compare_writes_plot_and_table() {
     let d = tempfile::tempdir().unwrap();
     let out = d.path().join("cmp");
-    let o = run(&["compare", "-o", out.to_str().unwrap(), "--elements", "200", "-q"]);
+    let o = run(&[
+        "compare",
+        "-o",
+        out.to_str().unwrap(),
+        "--elements",
+        "200",
+        "-q",
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    assert_eq!(files(&out), ["convergence.png", "convergence.svg", "table.md"]);
+    assert_eq!(
+        files(&out),
+        ["convergence.png", "convergence.svg", "table.md"]
+    );
     let table = std::fs::read_to_string(out.join("table.md")).unwrap();
-    for name in ["direct (LU)", "Jacobi", "Gauss–Seidel", "progressive + ambient", "overshoot"] {
+    for name in [
+        "direct (LU)",
+        "Jacobi",
+        "Gauss–Seidel",
+        "progressive + ambient",
+        "overshoot",
+    ] {
         assert!(table.contains(name), "{table}");
     }
-    assert_eq!(String::from_utf8_lossy(&o.stdout), table, "the table is also printed");
+    assert_eq!(
+        String::from_utf8_lossy(&o.stdout),
+        table,
+        "the table is also printed"
+    );
     let png = image::open(out.join("convergence.png")).unwrap();
     assert!(png.width() >= 800 && png.height() >= 400);
 }
@@ -147,7 +254,20 @@ fn compare_writes_plot_and_table() {
 fn compare_rejects_bad_options() {
     let d = tempfile::tempdir().unwrap();
     let out = d.path().join("cmp");
-    let o = |extra: &[&str]| run(&[&["compare", "-o", out.to_str().unwrap(), "--elements", "100", "-q"], extra].concat());
+    let o = |extra: &[&str]| {
+        run(&[
+            &[
+                "compare",
+                "-o",
+                out.to_str().unwrap(),
+                "--elements",
+                "100",
+                "-q",
+            ],
+            extra,
+        ]
+        .concat())
+    };
     assert_fails_cleanly(&o(&["--overshoot", "1"]), &["--overshoot"]);
     assert_fails_cleanly(&o(&["--target-error", "2"]), &["--target-error"]);
     assert_fails_cleanly(&o(&["--tolerance", "1e-3"]), &["--target-error"]);

@@ -45,7 +45,11 @@ fn shots_per_second(c: &mut Criterion) {
         // real solution (the light first, then the brightest surfaces), not the light's
         // patches over and over.
         let mut state = Progressive::new(&mesh, &options);
-        let id = format!("cornell_{}_elements_{}_patches", mesh.len(), mesh.patches.len());
+        let id = format!(
+            "cornell_{}_elements_{}_patches",
+            mesh.len(),
+            mesh.patches.len()
+        );
         group.bench_function(id, |b| {
             b.iter(|| {
                 for _ in 0..SHOTS {

@@ -154,7 +154,9 @@ pub fn parse_frames(text: &str) -> Result<Vec<usize>, SequenceError> {
         if part.is_empty() && text.trim().is_empty() {
             return Err(SequenceError::NoFrames);
         }
-        let n: usize = part.parse().map_err(|_| SequenceError::BadFrame(part.to_owned()))?;
+        let n: usize = part
+            .parse()
+            .map_err(|_| SequenceError::BadFrame(part.to_owned()))?;
         frames.push(n);
     }
     check_frames(&frames)?;
@@ -238,7 +240,10 @@ pub fn run(
                 }
                 progress.inc(1);
                 if state.shots() % 8 == 0 {
-                    progress.message(&format!("unshot {}", format_fraction(state.unshot_fraction())));
+                    progress.message(&format!(
+                        "unshot {}",
+                        format_fraction(state.unshot_fraction())
+                    ));
                 }
             }
         }
@@ -256,7 +261,13 @@ pub fn run(
             elements: &mesh.elements,
             radiosity: &radiosity,
         };
-        let image = render_elements(&shaded, &view.camera, view.shading, view.wireframe, &view.render)?;
+        let image = render_elements(
+            &shaded,
+            &view.camera,
+            view.shading,
+            view.wireframe,
+            &view.render,
+        )?;
         let unshot_fraction = state.unshot_fraction();
         let record = FrameRecord {
             requested,
@@ -333,10 +344,15 @@ fn label_size(tile_width: u32) -> u32 {
 /// label lines beneath, as 8-bit sRGB. `exposure` is in stops, as for the frames' PNGs:
 /// pixel = clip(L·2^exposure) → sRGB ([`srgb_byte`]). Labels are set in the bundled DejaVu
 /// Sans font.
-pub fn contact_sheet(tiles: &[(&Image, Vec<String>)], exposure: f32) -> Result<image::RgbImage, SequenceError> {
-    let font = ab_glyph::FontRef::try_from_slice(crate::compare::FONT).map_err(|e| SequenceError::Write {
-        path: "contact sheet".into(),
-        message: format!("the bundled font: {e}"),
+pub fn contact_sheet(
+    tiles: &[(&Image, Vec<String>)],
+    exposure: f32,
+) -> Result<image::RgbImage, SequenceError> {
+    let font = ab_glyph::FontRef::try_from_slice(crate::compare::FONT).map_err(|e| {
+        SequenceError::Write {
+            path: "contact sheet".into(),
+            message: format!("the bundled font: {e}"),
+        }
     })?;
     let columns = tiles.len().clamp(1, SHEET_COLUMNS);
     let rows = tiles.len().div_ceil(columns).max(1);
@@ -358,13 +374,25 @@ pub fn contact_sheet(tiles: &[(&Image, Vec<String>)], exposure: f32) -> Result<i
         for y in 0..img.height {
             for x in 0..img.width {
                 let p = img.pixels[(y * img.width + x) as usize];
-                sheet.put_pixel(left + x, y0 + y, image::Rgb(p.map(|v| srgb_byte(v * scale))));
+                sheet.put_pixel(
+                    left + x,
+                    y0 + y,
+                    image::Rgb(p.map(|v| srgb_byte(v * scale))),
+                );
             }
         }
         for (l, line) in lines.iter().enumerate() {
             // Baseline at 80 % of the line: DejaVu's ascent is 0.76 em.
             let baseline = y0 + frame_h + GAP / 2 + l as u32 * line_h + line_h * 4 / 5;
-            draw_text(&mut sheet, &font, text as f32, x0 as f32 + 2.0, baseline as f32, line, LABEL_COLOUR);
+            draw_text(
+                &mut sheet,
+                &font,
+                text as f32,
+                x0 as f32 + 2.0,
+                baseline as f32,
+                line,
+                LABEL_COLOUR,
+            );
         }
     }
     Ok(sheet)
@@ -403,13 +431,14 @@ fn draw_text(
         outline.draw(|gx, gy, coverage| {
             let px = bounds.min.x as i64 + i64::from(gx);
             let py = bounds.min.y as i64 + i64::from(gy);
-            if px < 0 || py < 0 || px >= i64::from(image.width()) || py >= i64::from(image.height()) {
+            if px < 0 || py < 0 || px >= i64::from(image.width()) || py >= i64::from(image.height())
+            {
                 return;
             }
             let a = coverage.clamp(0.0, 1.0);
             let p = image.get_pixel_mut(px as u32, py as u32);
-            for ch in 0..3 {
-                p.0[ch] = (f32::from(p.0[ch]) * (1.0 - a) + f32::from(colour[ch]) * a).round() as u8;
+            for (v, c) in p.0.iter_mut().zip(colour) {
+                *v = (f32::from(*v) * (1.0 - a) + f32::from(c) * a).round() as u8;
             }
         });
     }
@@ -420,7 +449,12 @@ pub fn write_png(image: &image::RgbImage, path: &Path) -> Result<(), SequenceErr
     use image::ImageEncoder;
     crate::io::atomic::write_atomically(path, |w| {
         image::codecs::png::PngEncoder::new(w)
-            .write_image(image.as_raw(), image.width(), image.height(), image::ExtendedColorType::Rgb8)
+            .write_image(
+                image.as_raw(),
+                image.width(),
+                image.height(),
+                image::ExtendedColorType::Rgb8,
+            )
             .map_err(std::io::Error::other)
     })
     .map_err(|e| SequenceError::Write {
@@ -435,7 +469,10 @@ mod tests {
 
     #[test]
     fn frames_parse_and_reject_bad_lists() {
-        assert_eq!(parse_frames("0,8,16, 25,50,100").unwrap(), vec![0, 8, 16, 25, 50, 100]);
+        assert_eq!(
+            parse_frames("0,8,16, 25,50,100").unwrap(),
+            vec![0, 8, 16, 25, 50, 100]
+        );
         assert_eq!(parse_frames("7").unwrap(), vec![7]);
         assert!(matches!(parse_frames(""), Err(SequenceError::NoFrames)));
         assert!(matches!(parse_frames("0,x"), Err(SequenceError::BadFrame(s)) if s == "x"));
@@ -443,11 +480,20 @@ mod tests {
         assert!(matches!(parse_frames("0,,8"), Err(SequenceError::BadFrame(s)) if s.is_empty()));
         assert!(matches!(
             parse_frames("0,16,8"),
-            Err(SequenceError::NotIncreasing { previous: 16, next: 8 })
+            Err(SequenceError::NotIncreasing {
+                previous: 16,
+                next: 8
+            })
         ));
-        assert!(matches!(parse_frames("3,3"), Err(SequenceError::NotIncreasing { .. })));
+        assert!(matches!(
+            parse_frames("3,3"),
+            Err(SequenceError::NotIncreasing { .. })
+        ));
         let many: Vec<String> = (0..=MAX_FRAMES).map(|i| i.to_string()).collect();
-        assert!(matches!(parse_frames(&many.join(",")), Err(SequenceError::TooManyFrames(_))));
+        assert!(matches!(
+            parse_frames(&many.join(",")),
+            Err(SequenceError::TooManyFrames(_))
+        ));
     }
 
     #[test]

@@ -21,37 +21,58 @@ use serde_json::Value;
 use FormFactorMethod::*;
 
 /// The largest |error| allowed on a reference value at the method's default settings, and
-/// why.
-fn reference_tolerance(method: FormFactorMethod) -> f64 {
-    match method {
+/// why. `contact`: the two polygons share an edge (Howell C-14), where the kernel
+/// cosθ cosθ' / (π r²) is singular.
+fn reference_tolerance(method: FormFactorMethod, contact: bool) -> f64 {
+    match (method, contact) {
         // Exact methods: the 1e-6. Measured ≤ 5e-10, which is the difference between
         // the C-41 disks of the reference and the 256-gons of the cases.
-        AnalyticPoint | AnalyticPolygon => 1e-6,
-        // The midpoint double sum with 4096 sub-areas per polygon (h = √A/64). Away from
-        // contact the error is O(h²/r²) ~ 1e-5; where the polygons share an edge (C-14) the
-        // kernel is 1/r²-singular and the sum converges only like O(h): measured 1.6e-3 on
-        // C-14 l=0.5 (h = 0.0039 on an edge of length 0.5 against a 3-long neighbour), so
-        // 2e-3, the aim.
-        PointSampled => 2e-3,
-        // Resolution 128 with 8×8 hemi-cubes on a polygon source: each hemi-cube misassigns
-        // the pixels cut by the projected outline, about ±½ pixel along it; with ~4·128
-        // outline pixels of mean ΔF ≈ 1/(3·128²) the bound is ~1/(2·3·128)·2 ≈ 3e-3 if all had
-        // one sign; they alternate and measured 4.7e-4. The aim 2e-3 holds.
-        Hemicube => 2e-3,
-        // Gauss receiver points with the order chosen from size/distance (≥ 1 point per
-        // element), exact point-to-polygon: measured 1.3e-3 on C-41 r1=0.1, whose 256-gon
-        // becomes a fan of slivers with one point each in the pair problem's mesh. 2e-3.
-        Raycast => 2e-3,
-        // 2²⁰ Bernoulli rays: stderr ≤ 0.5/1024 = 4.9e-4, and the test below also demands
-        // |error| ≤ 4 stderr; 2e-3 ≈ 4 × 4.9e-4.
-        MonteCarlo => 2e-3,
+        (AnalyticPoint | AnalyticPolygon, _) => 1e-6,
+        // The midpoint double sum over 4096 sub-areas per polygon (side h = √A/64). Apart,
+        // its error is O((h/r)²): measured ≤ 9.3e-5 (C-11 a=2, r = 0.5), so 2e-4. At a
+        // shared edge the 1/r² kernel makes it converge only like O(h): measured 2.1e-3 and
+        // 2.7e-3 on C-14 l=w=h=1 and l=2 (F21), so 3e-3; halving the error would take 4× the
+        // samples (16× the time).
+        (PointSampled, false) => 2e-4,
+        (PointSampled, true) => 3e-3,
+        // Resolution 128 with 8×8 hemi-cubes over a polygon source: each hemi-cube misassigns
+        // the pixels the projected outline cuts, ±½ pixel along it; with ~4·128 outline
+        // pixels of mean ΔF ≈ 1/(3·128²) that is ≤ ~3e-3 if all had one sign, but they
+        // alternate: measured ≤ 4.7e-4, so 1e-3.
+        (Hemicube, _) => 1e-3,
+        // The default engine on the pair as one element per polygon: n×n Gauss receiver
+        // points with n = ⌈size/distance⌉ (quality 1), exact point-to-polygon. Apart, the
+        // error of so few points is measured ≤ 1.7e-3 (C-41 r=1 and C-11 unit: n = 2), so
+        // 3e-3; touching, n = 16 meets the d·ln d edge singularity: measured 4.1e-3 on the
+        // 3 × 0.5 strip of C-14 h=3, so 6e-3.
+        (Raycast, false) => 3e-3,
+        (Raycast, true) => 6e-3,
+        // 2²⁰ Bernoulli rays: stderr ≤ 0.5/1024 = 4.9e-4; the test also demands
+        // |error| ≤ 4 stderr. 2e-3 ≈ 4 × 4.9e-4.
+        (MonteCarlo, _) => 2e-3,
     }
 }
 
+/// The loosest tolerance of a method (for the property tests, whose configurations include a
+/// shared edge).
+fn tolerance(method: FormFactorMethod) -> f64 {
+    reference_tolerance(method, true)
+}
+
+/// Default settings with a fixed seed.
 fn settings() -> PairSettings {
     PairSettings {
         seed: 7,
         ..Default::default()
+    }
+}
+
+/// For the property tests, which solve many problems: Monte Carlo with 2¹⁸ rays (stderr ≤
+/// 1e-3, compared within 4 stderr), every other method at its defaults.
+fn property_settings(method: FormFactorMethod) -> PairSettings {
+    PairSettings {
+        samples: (method == MonteCarlo).then_some(1 << 18),
+        ..settings()
     }
 }
 
@@ -61,9 +82,9 @@ fn every_method_matches_every_reference_case() {
     assert_eq!(cases.len(), 20);
     let mut failures = Vec::new();
     for &method in FormFactorMethod::ALL {
-        let tol = reference_tolerance(method);
         let mut worst = (0.0f64, String::new());
         for case in &cases {
+            let tol = reference_tolerance(method, case.name.starts_with("C-14"));
             let r = solve_pair(&case.problem, method, &settings());
             let mut checks = vec![("F12", r.from_to, case.f12)];
             match (case.f21, r.to_from) {
@@ -137,7 +158,8 @@ fn configurations() -> Vec<(Vec<DVec3>, Vec<DVec3>)> {
     };
     vec![
         (rect_z(0.0, 1.0, 0.0, 1.0, 0.0, true), rect_z(0.5, 2.0, 0.3, 1.1, 0.7, false)),
-        (rect_z(0.0, 2.0, 0.0, 1.0, 0.0, true), vec![v(2.5, 0.0, 0.2), v(2.5, 1.0, 0.2), v(2.5, 1.0, 1.5), v(2.5, 0.0, 1.5)]),
+        // A wall beside the floor, facing it (−x).
+        (rect_z(0.0, 2.0, 0.0, 1.0, 0.0, true), vec![v(2.5, 0.0, 1.5), v(2.5, 1.0, 1.5), v(2.5, 1.0, 0.2), v(2.5, 0.0, 0.2)]),
         (rect_z(0.0, 1.0, 0.0, 1.0, 0.0, true), tilted),
         (vec![v(0.0, 0.0, 0.0), v(1.0, 0.2, 0.0), v(0.3, 0.9, 0.0)], rect_z(-0.5, 0.5, 0.0, 1.5, 0.6, false)),
         // Howell C-14 with w = 1.5: the floor and a wall sharing the edge x = 0.
@@ -156,7 +178,7 @@ fn agree(method: FormFactorMethod, a: (f64, Option<f64>), b: (f64, Option<f64>),
     match method {
         AnalyticPoint | AnalyticPolygon => diff <= exact * scale,
         MonteCarlo => diff <= 4.0 * (a.1.unwrap().powi(2) + b.1.unwrap().powi(2)).sqrt(),
-        _ => diff <= reference_tolerance(method) * scale,
+        _ => diff <= tolerance(method) * scale,
     }
 }
 
@@ -166,8 +188,8 @@ fn weighted(e: Estimate, w: f64) -> (f64, Option<f64>) {
 
 #[test]
 fn reciprocity_holds_for_every_method() {
-    let settings = settings();
     for &method in FormFactorMethod::ALL {
+        let settings = property_settings(method);
         for (i, (a, b)) in configurations().into_iter().enumerate() {
             let (aa, ab) = (area(&a), area(&b));
             let r: PairResult = solve_pair(&problem(a, b, vec![]), method, &settings);
@@ -192,8 +214,8 @@ fn reciprocity_holds_for_every_method() {
 #[test]
 fn additivity_holds_for_every_method() {
     // F_{i→(j∪k)} = F_{i→j} + F_{i→k}, with j∪k a receiver cut in two along a chord.
-    let settings = settings();
     for &method in FormFactorMethod::ALL {
+        let settings = property_settings(method);
         for (i, (a, b)) in configurations().into_iter().enumerate() {
             let (m0, m2) = (b[0].lerp(b[1], 0.37), b[2].lerp(b[3 % b.len()], 0.61));
             let first = vec![m0, b[1], b[2], m2];
@@ -225,8 +247,8 @@ fn a_blocker_covering_the_whole_view_gives_zero() {
     let to = rect_z(0.0, 1.0, 0.0, 1.0, 1.0, false);
     // A plate at mid-height, larger than the view cone between the two squares.
     let blocker = rect_z(-2.0, 3.0, -2.0, 3.0, 0.5, true);
-    let settings = settings();
     for &method in FormFactorMethod::ALL {
+        let settings = property_settings(method);
         let r = solve_pair(&problem(from.clone(), to.clone(), vec![blocker.clone()]), method, &settings);
         assert_eq!(r.from_to.value, 0.0, "{method}: F_from_to behind a full blocker");
         assert_eq!(r.to_from.unwrap().value, 0.0, "{method}: F_to_from behind a full blocker");
@@ -259,15 +281,15 @@ fn a_blocker_hiding_half_the_receiver_halves_the_form_factor() {
     let plate = rect_z(-0.1, 0.5, -0.1, 1.1, 1.0 - 1e-4, false);
     // A plate beside the view hides nothing.
     let beside = rect_z(1.5, 2.5, 0.0, 1.0, 0.5, true);
-    let settings = settings();
     for &method in FormFactorMethod::ALL {
+        let settings = property_settings(method);
         let r = solve_pair(&problem(from.clone(), to.clone(), vec![plate.clone(), beside.clone()]), method, &settings);
         let want = 0.5 * C11_UNIT;
         for (what, got) in [("F_from_to", r.from_to), ("F_to_from", r.to_from.unwrap())] {
             let err = (got.value - want).abs();
             let ok = match method {
                 MonteCarlo => err <= 4.0 * got.stderr.unwrap(),
-                _ => err <= reference_tolerance(method),
+                _ => err <= tolerance(method),
             };
             assert!(ok, "{method} {what}: {} vs {want} (error {err:.2e})", got.value);
         }
@@ -349,10 +371,11 @@ fn rows_sum_to_one_inside_a_closed_subdivided_cube() {
             // Every ray from inside a closed box lands on some patch's front; rays slipping
             // through the f32 cracks along the cube's edges would show here.
             MonteCarlo => 2e-6,
-            // The finite sum at the element centre over 4×4 sub-areas per patch: the
-            // sub-area nearest an element at the cube's edge is a quarter of its size away,
-            // where the midpoint rule for 1/r² errs by some %. Measured 2.7 %.
-            PointSampled => 0.05,
+            // The finite sum at the element centre over 4×4 sub-areas per patch: for an
+            // element at the cube's edge the nearest sub-areas of the neighbouring face are
+            // 1.1–1.8 sub-area sizes away, where the midpoint rule for the 1/r² kernel errs by
+            // tens of % locally. Measured 5.5 %, so 8 %.
+            PointSampled => 0.08,
         };
         eprintln!("{method:>16}: worst |Σ_p F_ep − 1| = {worst:.2e}");
         assert!(worst <= tol, "{method}: a row sums to 1 ± {worst:.2e} (tolerance {tol:.0e})");
@@ -389,11 +412,12 @@ fn mesh_engines_agree_with_the_exact_element_to_patch_factor() {
         let rel = err / total;
         // Relative L1 error of the whole coupling. The point methods (analytic-point,
         // point-sampled, hemicube) use the element's centre, exact only to O(size²/r²),
-        // about 10 % for elements next to the neighbouring face; raycast's Gauss points
-        // make it ~1e-4; Monte Carlo's 4096 rays per element give ~0.5/√(4096 F) per entry.
+        // about 10 % for elements next to the neighbouring face; raycast's n×n Gauss points
+        // (n = ⌈size/distance⌉) measured 4.6e-3; Monte Carlo's 4096 rays per element give
+        // ~0.5/√(4096 F) per entry.
         let tol = match method {
             AnalyticPolygon => 1e-6,
-            Raycast => 1e-3,
+            Raycast => 1e-2,
             AnalyticPoint | PointSampled | Hemicube => 0.1,
             MonteCarlo => 0.1,
         };
@@ -409,25 +433,45 @@ fn cornell_reference() -> Value {
     serde_json::from_str(include_str!("reference/cornell_reference.json")).unwrap()
 }
 
-/// Per-polygon tolerance (relative) of the Cornell box solved with each method on the default
-/// mesh (about 4000 elements), and why.
-fn cornell_tolerance(method: FormFactorMethod) -> f64 {
+/// Per-polygon tolerances (relative) of the Cornell box solved with each method on the
+/// default mesh (about 4.7k elements): against Mitsuba, and against the same mesh solved with
+/// the exact `analytic-polygon` form factors.
+///
+/// The two separate the errors. Against Mitsuba every method carries the mesh's
+/// discretisation error (constant radiosity on ~4.7k elements), which the exact method shows
+/// alone: measured up to 6.6 % on the short block's front (~40 elements lit only indirectly)
+/// and below 2 % on the large polygons. Against `analytic-polygon` only the method's own
+/// error remains.
+fn cornell_tolerances(method: FormFactorMethod) -> (f64, f64) {
     match method {
-        // As the default raycast is held to in tests/reference.rs: the discretisation of
-        // the continuous answer into ~4k constant elements, visibility sampled by rays.
-        Raycast | AnalyticPolygon => 0.03,
-        _ => 0.03,
+        // The discretisation error alone (measured 6.6 %), with margin: 9 %.
+        AnalyticPolygon => (0.09, 0.0),
+        // Centre-point methods (the element's centre stands for the element): measured
+        // 2.5 % from the exact coupling on dim faces beside a wall; 9 % / 4 %.
+        AnalyticPoint | PointSampled => (0.09, 0.04),
+        // Gauss receiver points and penumbra sub-areas: measured 1.3 %; 9 % / 2.5 %.
+        Raycast => (0.09, 0.025),
+        // 4096 rays per element: each F_{e→p} ± 0.5/√(4096 F) relative, averaged over a
+        // polygon's elements: measured 1.7 %; 9 % / 3 %.
+        MonteCarlo => (0.09, 0.03),
+        // Progressive shooting puts the hemi-cube at the shooting patch's centre (a 3×3-
+        // element patch stands for its area), and pixels alias: measured 6 % from the exact
+        // coupling on the short block's front; 15 % / 8 %.
+        Hemicube => (0.15, 0.08),
     }
 }
 
 #[test]
 fn cornell_box_with_every_method_matches_mitsuba() {
     let reference = cornell_reference();
+    let polygons = reference["per_polygon_area_averaged"]["polygons"].as_array().unwrap();
     let mut failures = Vec::new();
+    let mut solutions: Vec<(FormFactorMethod, Vec<[f64; 3]>)> = Vec::new();
     for &method in FormFactorMethod::ALL {
         let settings = SolveSettings {
             form_factor: method,
             solve: SolveOptions {
+                // Converged well below the tolerances (unshot power 1e-4 of the emitted).
                 tolerance: 1e-4,
                 ..Default::default()
             },
@@ -437,26 +481,25 @@ fn cornell_box_with_every_method_matches_mitsuba() {
         let solved = solve_scene(&cornell_box(), &settings, &NoProgress).unwrap();
         let seconds = start.elapsed().as_secs_f64();
         let report = Report::new("cornell", &solved.mesh, &solved.solution, method.name());
-        let tol = cornell_tolerance(method);
+        let tol = cornell_tolerances(method).0;
         let mut worst = (0.0f64, String::new());
-        for poly in reference["per_polygon_area_averaged"]["polygons"].as_array().unwrap() {
+        let mut ours = Vec::new();
+        for poly in polygons {
             let name = poly["name"].as_str().unwrap();
-            let ours = report.object(name).unwrap_or_else(|| panic!("no object {name}"));
+            let b = report.object(name).unwrap_or_else(|| panic!("no object {name}")).radiosity;
             for c in 0..3 {
                 let want = poly["radiosity_avg"][c].as_f64().unwrap();
+                // Plus 3 Monte Carlo standard errors of the reference itself.
                 let se = poly["radiosity_avg_stderr"][c].as_f64().unwrap();
-                let err = (ours.radiosity[c] - want).abs();
+                let err = (b[c] - want).abs();
                 if err / want > worst.0 {
                     worst = (err / want, format!("{name}[{c}]"));
                 }
                 if err > tol * want + 3.0 * se {
-                    failures.push(format!(
-                        "{method}: {name}[{c}] ours {} vs {want} ({:.2} %)",
-                        ours.radiosity[c],
-                        100.0 * err / want
-                    ));
+                    failures.push(format!("{method}: {name}[{c}] ours {} vs Mitsuba {want} ({:.2} %)", b[c], 100.0 * err / want));
                 }
             }
+            ours.push(b);
         }
         eprintln!(
             "{method:>16}: {} elements, solved in {seconds:.2} s, worst per-polygon error {:.2} % ({})",
@@ -464,6 +507,25 @@ fn cornell_box_with_every_method_matches_mitsuba() {
             100.0 * worst.0,
             worst.1
         );
+        solutions.push((method, ours));
+    }
+    let exact = &solutions.iter().find(|(m, _)| *m == AnalyticPolygon).unwrap().1;
+    for (method, ours) in &solutions {
+        let tol = cornell_tolerances(*method).1;
+        let mut worst = (0.0f64, String::new());
+        for ((poly, b), e) in polygons.iter().zip(ours).zip(exact) {
+            for c in 0..3 {
+                let rel = (b[c] - e[c]).abs() / e[c];
+                let name = poly["name"].as_str().unwrap();
+                if rel > worst.0 {
+                    worst = (rel, format!("{name}[{c}]"));
+                }
+                if rel > tol {
+                    failures.push(format!("{method}: {name}[{c}] ours {} vs analytic-polygon {} ({:.2} %)", b[c], e[c], 100.0 * rel));
+                }
+            }
+        }
+        eprintln!("{method:>16}: worst difference from analytic-polygon {:.2} % ({})", 100.0 * worst.0, worst.1);
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }

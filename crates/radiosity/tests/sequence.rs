@@ -85,7 +85,10 @@ fn frame_n_shows_exactly_n_shots_at_the_requested_size() {
         for (got, want) in frame.radiosity.iter().zip(&want.radiosity) {
             for c in 0..3 {
                 // Identical arithmetic; 1e-12 only allows for a different summation order.
-                assert!((got[c] - want[c]).abs() <= 1e-12 * want[c].abs().max(1.0), "{got:?} vs {want:?}");
+                assert!(
+                    (got[c] - want[c]).abs() <= 1e-12 * want[c].abs().max(1.0),
+                    "{got:?} vs {want:?}"
+                );
             }
         }
     }
@@ -106,12 +109,18 @@ fn frame_n_shows_exactly_n_shots_at_the_requested_size() {
         let k = p[0] / le[0];
         assert!((0.0..=1.0 + 1e-5).contains(&k), "pixel {p:?}");
         for c in 1..3 {
-            assert!((p[c] - k * le[c]).abs() <= 1e-4 * le[c], "pixel {p:?} is not the light's colour");
+            assert!(
+                (p[c] - k * le[c]).abs() <= 1e-4 * le[c],
+                "pixel {p:?} is not the light's colour"
+            );
         }
         lit += (k > 0.0) as usize;
     }
     // The light covers about 2 % of the Cornell view: some pixels, but few.
-    assert!(lit > 0 && lit < zero.image.pixels.len() / 10, "{lit} lit pixels");
+    assert!(
+        lit > 0 && lit < zero.image.pixels.len() / 10,
+        "{lit} lit pixels"
+    );
 }
 
 #[test]
@@ -126,14 +135,20 @@ fn converged_final_frame_matches_the_render_image() {
 
     // `radiosity render` on the same scene and settings: progressive to the same tolerance.
     let solved = solve_scene(&cornell_box(), &settings, &NoProgress).unwrap();
-    assert_eq!(solved.solution.stats.iterations, last.record.shots, "same shots to converge");
+    assert_eq!(
+        solved.solution.stats.iterations, last.record.shots,
+        "same shots to converge"
+    );
     let shaded = Shaded {
         vertices: &solved.mesh.vertices,
         elements: &solved.mesh.elements,
         radiosity: &solved.solution.radiosity,
     };
     let want = render_elements(&shaded, &v.camera, v.shading, v.wireframe, &v.render).unwrap();
-    assert_eq!((want.width, want.height), (last.image.width, last.image.height));
+    assert_eq!(
+        (want.width, want.height),
+        (last.image.width, last.image.height)
+    );
     // Per pixel and channel, relative to the pixel (floored at 1e-3 of the image's mean so
     // that black pixels compare absolutely): within 1e-3, the bound.
     let mean = image_mean(&want);
@@ -156,14 +171,16 @@ fn ambient_brings_early_frames_closer_to_the_converged_brightness() {
     let plain = sequence(&settings, &frames, false, &v);
     let ambient = sequence(&settings, &frames, true, &v);
     let converged = image_mean(&plain.frames[2].image);
-    for k in 0..2 {
-        let (p, a) = (image_mean(&plain.frames[k].image), image_mean(&ambient.frames[k].image));
+    for (k, shots) in frames[..2].iter().enumerate() {
+        let (p, a) = (
+            image_mean(&plain.frames[k].image),
+            image_mean(&ambient.frames[k].image),
+        );
         for c in 0..3 {
             let (dp, da) = ((p[c] - converged[c]).abs(), (a[c] - converged[c]).abs());
             assert!(
                 da < dp,
-                "frame {}: channel {c}: ambient mean {} is not closer to the converged {} than plain {}",
-                frames[k],
+                "frame {shots}: channel {c}: ambient mean {} is not closer to the converged {} than plain {}",
                 a[c],
                 converged[c],
                 p[c]
@@ -177,7 +194,12 @@ fn ambient_brings_early_frames_closer_to_the_converged_brightness() {
     // the mean brightness; allow 1e-3.
     let a = image_mean(&ambient.frames[2].image);
     for c in 0..3 {
-        assert!((a[c] - converged[c]).abs() <= 1e-3 * converged[c], "channel {c}: {} vs {}", a[c], converged[c]);
+        assert!(
+            (a[c] - converged[c]).abs() <= 1e-3 * converged[c],
+            "channel {c}: {} vs {}",
+            a[c],
+            converged[c]
+        );
     }
 }
 
@@ -193,7 +215,11 @@ fn adaptive_sequence_grows_the_mesh_and_keeps_the_shot_counts() {
     v.wireframe = true;
     let seq = run(&cornell_box(), &settings, &options, &v, &NoProgress).unwrap();
     let counts: Vec<usize> = seq.frames.iter().map(|f| f.record.elements).collect();
-    let coarse = Mesh::build(&cornell_box(), &radiosity::sequence::coarse_mesh_options(&settings.mesh)).unwrap();
+    let coarse = Mesh::build(
+        &cornell_box(),
+        &radiosity::sequence::coarse_mesh_options(&settings.mesh),
+    )
+    .unwrap();
     assert_eq!(counts[0], coarse.len(), "starts from the coarse mesh");
     assert!(counts.windows(2).all(|w| w[1] >= w[0]), "{counts:?}");
     assert!(counts[2] > counts[0], "the mesh never grew: {counts:?}");
@@ -213,7 +239,11 @@ fn adaptive_sequence_grows_the_mesh_and_keeps_the_shot_counts() {
         let sum = absorbed[c] + seq.solution.escaped_power[c] + unshot[c];
         // Children re-gather what was shot with their own form factors, so the balance holds
         // to the form factors' accuracy (a few per cent), not exactly.
-        assert!((sum - emitted[c]).abs() <= 0.05 * emitted[c], "channel {c}: {sum} vs {}", emitted[c]);
+        assert!(
+            (sum - emitted[c]).abs() <= 0.05 * emitted[c],
+            "channel {c}: {sum} vs {}",
+            emitted[c]
+        );
     }
 }
 
@@ -226,9 +256,14 @@ fn bad_sequences_fail_with_a_clear_error() {
         ambient: false,
         adaptive: None,
     };
-    let err = |s: &SolveSettings, o: SequenceOptions| run(&cornell_box(), s, &o, &v, &NoProgress).err().unwrap();
+    let err = |s: &SolveSettings, o: SequenceOptions| {
+        run(&cornell_box(), s, &o, &v, &NoProgress).err().unwrap()
+    };
     assert!(matches!(err(&s, options(vec![])), SequenceError::NoFrames));
-    assert!(matches!(err(&s, options(vec![8, 8])), SequenceError::NotIncreasing { .. }));
+    assert!(matches!(
+        err(&s, options(vec![8, 8])),
+        SequenceError::NotIncreasing { .. }
+    ));
     s.solve.overshoot = 2.5;
     let e = err(&s, options(vec![0, 1]));
     assert!(matches!(e, SequenceError::BadOvershoot(_)));
@@ -248,7 +283,10 @@ fn contact_sheet_places_frames_and_labels() {
     let label_lines = 2 * (13 * 5 / 4);
     assert_eq!(sheet.height(), 8 + 90 + 8 + label_lines + 8);
     // Frame pixels are sRGB of L·2^exposure (exposure 1 stop doubles, then clips).
-    assert_eq!(sheet.get_pixel(8 + 80, 8 + 45).0, [srgb_byte(0.5), 255, 255]);
+    assert_eq!(
+        sheet.get_pixel(8 + 80, 8 + 45).0,
+        [srgb_byte(0.5), 255, 255]
+    );
     assert_eq!(sheet.get_pixel(8 + 168 + 80, 8 + 45).0, [255, 0, 0]);
     // Text under the first frame only: light pixels in its label band, none under the second.
     let band = |x0: u32| {
@@ -260,7 +298,11 @@ fn contact_sheet_places_frames_and_labels() {
         }
         light
     };
-    assert!(band(8) > 50, "no label text drawn ({} light pixels)", band(8));
+    assert!(
+        band(8) > 50,
+        "no label text drawn ({} light pixels)",
+        band(8)
+    );
     assert_eq!(band(8 + 168), 0);
 }
 
@@ -317,8 +359,13 @@ fn measure_ambient_means() {
     let plain = sequence(&settings, &frames, false, &v);
     let ambient = sequence(&settings, &frames, true, &v);
     let conv = image_mean(&plain.frames[frames.len() - 1].image);
-    println!("converged mean radiance {conv:.4?} W·m⁻²·sr⁻¹ after {} shots", plain.frames[frames.len() - 1].record.shots);
-    println!("| shots | unshot | plain mean | ambient mean | plain / converged | ambient / converged |");
+    println!(
+        "converged mean radiance {conv:.4?} W·m⁻²·sr⁻¹ after {} shots",
+        plain.frames[frames.len() - 1].record.shots
+    );
+    println!(
+        "| shots | unshot | plain mean | ambient mean | plain / converged | ambient / converged |"
+    );
     println!("|---|---|---|---|---|---|");
     let lum = |m: [f64; 3]| m[0] + m[1] + m[2];
     for (p, a) in plain.frames.iter().zip(&ambient.frames) {

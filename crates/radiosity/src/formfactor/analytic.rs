@@ -177,23 +177,46 @@ fn probed_patches(mesh: &Mesh) -> Vec<ProbedSource> {
         .collect()
 }
 
-impl FormFactors for AnalyticPoint<'_> {
-    fn name(&self) -> &'static str {
-        "analytic-point"
-    }
-
-    fn pair(&self, element: usize, patch: usize) -> f64 {
+impl AnalyticPoint<'_> {
+    fn receive(&self, element: usize, s: &ProbedSource) -> f64 {
         let e = &self.mesh.elements[element];
-        if e.surface == self.mesh.patches[patch].surface {
-            return 0.0;
-        }
-        let s = &self.sources[patch];
         let f = point_to_polygon(e.centre, e.normal, &s.vertices, s.normal);
         if f <= 0.0 {
             return 0.0;
         }
         f * visible_fraction(self.visibility, &[(e.centre, 1.0)], e.normal, s, true)
     }
+}
+
+impl FormFactors for AnalyticPoint<'_> {
+    fn name(&self) -> &'static str {
+        "analytic-point"
+    }
+
+    fn pair(&self, element: usize, patch: usize) -> f64 {
+        if self.mesh.elements[element].surface == self.mesh.patches[patch].surface {
+            return 0.0;
+        }
+        self.receive(element, &self.sources[patch])
+    }
+
+    fn element_pair(&self, element: usize, source: usize) -> Option<f64> {
+        let (e, s) = (&self.mesh.elements[element], &self.mesh.elements[source]);
+        if e.surface == s.surface {
+            return Some(0.0);
+        }
+        let source = ProbedSource::new(&corners(self.mesh, source), PROBE, PENUMBRA);
+        Some(self.receive(element, &source))
+    }
+
+    fn resolves_elements(&self) -> bool {
+        true
+    }
+}
+
+/// The corners of element `e`.
+fn corners(mesh: &Mesh, e: usize) -> Vec<DVec3> {
+    mesh.elements[e].corners.iter().map(|&c| mesh.vertices[c as usize]).collect()
 }
 
 /// The `analytic-polygon` engine: F_{e→p} = F^exact_{e→p} × V, the exact unoccluded
@@ -214,18 +237,10 @@ impl<'a> AnalyticPolygon<'a> {
     }
 }
 
-impl FormFactors for AnalyticPolygon<'_> {
-    fn name(&self) -> &'static str {
-        "analytic-polygon"
-    }
-
-    fn pair(&self, element: usize, patch: usize) -> f64 {
+impl AnalyticPolygon<'_> {
+    fn receive(&self, element: usize, s: &ProbedSource) -> f64 {
         let e = &self.mesh.elements[element];
-        if e.surface == self.mesh.patches[patch].surface {
-            return 0.0;
-        }
-        let s = &self.sources[patch];
-        let corners: Vec<DVec3> = e.corners.iter().map(|&c| self.mesh.vertices[c as usize]).collect();
+        let corners = corners(self.mesh, element);
         // Cheap culls before the contour integral: either polygon wholly behind the other.
         let front = |v: &DVec3, o: DVec3, n: DVec3| (*v - o).dot(n) > 0.0;
         if !s.vertices.iter().any(|v| front(v, e.centre, e.normal))
@@ -240,6 +255,32 @@ impl FormFactors for AnalyticPolygon<'_> {
         let mut receivers = Vec::with_capacity(4);
         element_points(&corners, e.centre, 2, &mut receivers);
         f * visible_fraction(self.visibility, &receivers, e.normal, s, false)
+    }
+}
+
+impl FormFactors for AnalyticPolygon<'_> {
+    fn name(&self) -> &'static str {
+        "analytic-polygon"
+    }
+
+    fn pair(&self, element: usize, patch: usize) -> f64 {
+        if self.mesh.elements[element].surface == self.mesh.patches[patch].surface {
+            return 0.0;
+        }
+        self.receive(element, &self.sources[patch])
+    }
+
+    fn element_pair(&self, element: usize, source: usize) -> Option<f64> {
+        let (e, s) = (&self.mesh.elements[element], &self.mesh.elements[source]);
+        if e.surface == s.surface {
+            return Some(0.0);
+        }
+        let source = ProbedSource::new(&corners(self.mesh, source), PROBE, PENUMBRA);
+        Some(self.receive(element, &source))
+    }
+
+    fn resolves_elements(&self) -> bool {
+        true
     }
 }
 

@@ -635,7 +635,9 @@ fn raster_polygon(tile: &Tile, scene: &LocalScene, poly: &LocalPoly, bufs: &mut 
         }
         // Sure pixels: i_lo ≤ s_lo ≤ s_hi ≤ i_hi + 1.
         let s_lo = ceil_i64(lo_s - 0.5).clamp(i_lo, i_hi + 1);
-        let s_hi = (floor_i64(hi_s - 0.5) + 1).clamp(s_lo, i_hi + 1);
+        let s_hi = floor_i64(hi_s - 0.5)
+            .saturating_add(1)
+            .clamp(s_lo, i_hi + 1);
         let (i_lo, i_hi, s_lo, s_hi) = (i_lo as usize, i_hi as usize, s_lo as usize, s_hi as usize);
         let row = j as usize * tile.cols;
         let key_row = key_00 + key_dv * j as f64;
@@ -680,7 +682,7 @@ fn depth_key(recip: f64, front: bool) -> u32 {
 fn floor_i64(x: f64) -> i64 {
     let i = x as i64;
     if (i as f64) > x {
-        i - 1
+        i.saturating_sub(1)
     } else {
         i
     }
@@ -691,7 +693,7 @@ fn floor_i64(x: f64) -> i64 {
 fn ceil_i64(x: f64) -> i64 {
     let i = x as i64;
     if (i as f64) < x {
-        i + 1
+        i.saturating_add(1)
     } else {
         i
     }
@@ -1433,6 +1435,35 @@ mod tests {
                 assert!(points.iter().all(|p| poly.distance_to(p.0) < 1e-12));
             }
         }
+    }
+
+    #[test]
+    fn regression_rows_beside_a_horizontal_edge_are_tested_not_filled() {
+        // A projected edge parallel to the pixel rows, passing within the 1e-3 pixel margin of
+        // a row of pixel centres, must leave that row to the exact test. (The span bound was
+        // +∞ there and ⌈+∞⌉ + 1 wrapped around, so the whole row was filled as "sure".)
+        let du = 2.0 / 64.0;
+        let yc = -1.0 + 40.5 * du; // a row of pixel centres on the top face
+        let f = |y_top: f64| {
+            let to = rect_z(-0.5, 0.5, -0.5, y_top, 1.0, true);
+            hemicube_pair(&from_origin(to, vec![]), &at(64)).value
+        };
+        let (beside, clear, across) = (f(yc - 5e-4 * du), f(yc - 0.3 * du), f(yc + 5e-4 * du));
+        assert_eq!(beside, clear);
+        assert!(across > clear);
+        assert_eq!(
+            (floor_i64(f64::INFINITY), ceil_i64(f64::NEG_INFINITY)),
+            (i64::MAX, i64::MIN)
+        );
+        assert_eq!(
+            (
+                floor_i64(-1.5),
+                ceil_i64(-1.5),
+                floor_i64(2.0),
+                ceil_i64(2.0)
+            ),
+            (-2, -1, 2, 2)
+        );
     }
 
     #[test]

@@ -123,6 +123,17 @@ pub trait FormFactors: Sync {
             .for_each(|(e, f)| *f = self.pair(e, patch) as f32);
     }
 
+    /// F_{e→e'} from element `e` to the single source element `source`, for near-field
+    /// pairs (see [`NearField`]); `None` when the method only resolves whole patches.
+    fn element_pair(&self, _element: usize, _source: usize) -> Option<f64> {
+        None
+    }
+
+    /// Whether [`FormFactors::element_pair`] is available.
+    fn resolves_elements(&self) -> bool {
+        false
+    }
+
     /// Row `e`: F_{e→p} for every patch `p` (what one gathering step needs).
     fn row(&self, element: usize, out: &mut [f32]) {
         for (p, f) in out.iter_mut().enumerate() {
@@ -131,12 +142,95 @@ pub trait FormFactors: Sync {
     }
 }
 
-/// The dense element × patch form-factor matrix, row-major (one row per receiving element).
+/// Which patches are too close to an element to be treated as one uniform source.
+///
+/// The substructured system lets an element gather from a whole patch at the patch's mean
+/// radiosity. Where the patch is close (within `κ` of its own diameter of the element), the
+/// part the element actually sees can be much brighter or darker than the mean (a shadow
+/// cast next to a block, a dark floor strip at a wall), so the element gathers from the
+/// patch's elements one by one instead: a two-level hierarchy in the spirit of Hanrahan,
+/// Salzman & Aupperle (1991), with the link level chosen by this distance oracle.
+#[derive(Debug, Clone, Default)]
+pub struct NearField {
+    /// Near patches of each element (sorted).
+    pub per_element: Vec<Vec<u32>>,
+    /// Elements for which each patch is near (sorted).
+    pub per_patch: Vec<Vec<u32>>,
+}
+
+impl NearField {
+    /// Patches closer to the element's centre than `kappa` × their diameter.
+    pub fn new(mesh: &Mesh, kappa: f64) -> Self {
+        let info: Vec<(DVec3, f64, f64)> = mesh
+            .patches
+            .iter()
+            .map(|p| {
+                let c = p.polygon.centroid();
+                let r = p.polygon.vertices().iter().map(|v| v.distance(c)).fold(0.0, f64::max);
+                (c, r, p.polygon.diameter())
+            })
+            .collect();
+        let per_element: Vec<Vec<u32>> = mesh
+            .elements
+            .par_iter()
+            .map(|e| {
+                info.iter()
+                    .zip(&mesh.patches)
+                    .enumerate()
+                    .filter(|(_, ((c, r, d), p))| {
+                        p.surface != e.surface
+                            && e.centre.distance(*c) - r < kappa * d
+                            && p.polygon.distance_to(e.centre) < kappa * d
+                    })
+                    .map(|(i, _)| i as u32)
+                    .collect()
+            })
+            .collect();
+        let mut per_patch = vec![Vec::new(); mesh.patches.len()];
+        for (e, near) in per_element.iter().enumerate() {
+            for &p in near {
+                per_patch[p as usize].push(e as u32);
+            }
+        }
+        Self {
+            per_element,
+            per_patch,
+        }
+    }
+
+    /// No near field: every element gathers from whole patches.
+    pub fn none(mesh: &Mesh) -> Self {
+        Self {
+            per_element: vec![Vec::new(); mesh.elements.len()],
+            per_patch: vec![Vec::new(); mesh.patches.len()],
+        }
+    }
+
+    /// The near field a method supports: [`NearField::new`] with κ = 1 if it resolves
+    /// elements, else none.
+    pub fn for_method(mesh: &Mesh, ff: &dyn FormFactors) -> Self {
+        if ff.resolves_elements() {
+            Self::new(mesh, 1.0)
+        } else {
+            Self::none(mesh)
+        }
+    }
+
+    pub fn is_near(&self, element: usize, patch: usize) -> bool {
+        self.per_element[element].binary_search(&(patch as u32)).is_ok()
+    }
+}
+
+/// The coupling of every element to every patch: a dense element × patch matrix of
+/// F_{e→p} for far pairs (row-major, zero where the pair is near) plus, for near pairs, the
+/// element-to-element factors F_{e→e'} of the patch's elements.
 #[derive(Debug, Clone)]
 pub struct CouplingMatrix {
     pub elements: usize,
     pub patches: usize,
     pub data: Vec<f32>,
+    /// Near-field links of each element: (source element, F_{e→e'}).
+    pub near: Vec<Vec<(u32, f32)>>,
 }
 
 impl CouplingMatrix {
@@ -147,18 +241,48 @@ impl CouplingMatrix {
 
     /// Computes every row in parallel.
     pub fn compute(ff: &dyn FormFactors, mesh: &Mesh, progress: &dyn Progress) -> Self {
+        let near_field = NearField::for_method(mesh, ff);
+        Self::compute_with(ff, mesh, &near_field, progress)
+    }
+
+    /// Computes every row in parallel with a given near field.
+    pub fn compute_with(ff: &dyn FormFactors, mesh: &Mesh, near_field: &NearField, progress: &dyn Progress) -> Self {
         let (n, m) = (mesh.elements.len(), mesh.patches.len());
         let mut data = vec![0.0f32; n * m];
         progress.start("form factors", n as u64);
-        data.par_chunks_mut(m.max(1)).enumerate().for_each(|(e, row)| {
-            ff.row(e, row);
-            progress.inc(1);
-        });
+        let near: Vec<Vec<(u32, f32)>> = data
+            .par_chunks_mut(m.max(1))
+            .enumerate()
+            .map(|(e, row)| {
+                let near_patches = &near_field.per_element[e];
+                let mut links = Vec::new();
+                if near_patches.is_empty() {
+                    ff.row(e, row);
+                } else {
+                    for (p, f) in row.iter_mut().enumerate() {
+                        if near_patches.binary_search(&(p as u32)).is_ok() {
+                            *f = 0.0;
+                            for s in mesh.patches[p].elements.clone() {
+                                let v = ff.element_pair(e, s as usize).unwrap_or(0.0);
+                                if v > 0.0 {
+                                    links.push((s, v as f32));
+                                }
+                            }
+                        } else {
+                            *f = ff.pair(e, p) as f32;
+                        }
+                    }
+                }
+                progress.inc(1);
+                links
+            })
+            .collect();
         progress.finish();
         Self {
             elements: n,
             patches: m,
             data,
+            near,
         }
     }
 
@@ -168,6 +292,15 @@ impl CouplingMatrix {
 
     pub fn get(&self, e: usize, p: usize) -> f64 {
         self.data[e * self.patches + p] as f64
+    }
+
+    /// F_{e→p} with the near-field links of `p` summed back into it.
+    pub fn full_row(&self, mesh: &Mesh, e: usize) -> Vec<f64> {
+        let mut row: Vec<f64> = self.row(e).iter().map(|&f| f as f64).collect();
+        for &(s, f) in &self.near[e] {
+            row[mesh.elements[s as usize].patch.0 as usize] += f as f64;
+        }
+        row
     }
 }
 

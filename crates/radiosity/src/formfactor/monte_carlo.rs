@@ -12,9 +12,10 @@
 //! 1/r² kernel is not square-integrable there); every ray's weight here is 0 or 1.
 //!
 //! - Mesh engine ([`MonteCarlo`]): from each element, `rays` rays traced through the shared
-//!   BVH; the first surface hit (front side only: backs are black) and the patch containing
-//!   the hit point receive the ray, so one batch of rays gives the element's whole row.
-//!   Rows are computed on first use and kept (sparse).
+//!   BVH; the first surface hit (front side only: backs are black) and the element containing
+//!   the hit point receive the ray, so one batch of rays gives the element's whole row, by
+//!   patch and by element (the near field). Rows are computed on first use and kept
+//!   (sparse: at most `rays` entries per element).
 //! - Pair problems ([`monte_carlo_pair`]): rays against `to` and the occluders.
 //!
 //! Random numbers: PCG-64 (MCG variant) seeded from the seed and the element (or batch)
@@ -298,14 +299,38 @@ impl PatchLocator {
     }
 }
 
+/// The element of `patch` containing the point `y` (on its plane): the one with the largest
+/// minimum signed distance to its edges, so that a point on a shared edge or just outside by
+/// rounding still gets one.
+fn element_at(mesh: &Mesh, patch: u32, y: DVec3) -> u32 {
+    let range = mesh.patches[patch as usize].elements.clone();
+    let mut best = (f64::NEG_INFINITY, range.start);
+    for i in range {
+        let e = &mesh.elements[i as usize];
+        let n = e.corners.len();
+        let inside = (0..n)
+            .map(|k| {
+                let a = mesh.vertices[e.corners[k] as usize];
+                let b = mesh.vertices[e.corners[(k + 1) % n] as usize];
+                (b - a).cross(y - a).dot(e.normal) / (b - a).length().max(1e-300)
+            })
+            .fold(f64::INFINITY, f64::min);
+        if inside > best.0 {
+            best = (inside, i);
+        }
+    }
+    best.1
+}
+
 /// The `monte-carlo` mesh engine (see the module docs).
 pub struct MonteCarlo<'a> {
     mesh: &'a Mesh,
     visibility: &'a Visibility,
     params: MonteCarloParams,
     locators: Vec<PatchLocator>,
-    /// Per element: (patch, F_{e→p}) for every patch hit, sorted by patch.
-    rows: Vec<OnceLock<Vec<(u32, f32)>>>,
+    /// Per element: (element hit, rays) for every element hit, sorted by element (and so by
+    /// patch: a patch's elements are contiguous).
+    rows: Vec<OnceLock<Vec<(u32, u32)>>>,
 }
 
 impl<'a> MonteCarlo<'a> {
@@ -317,7 +342,10 @@ impl<'a> MonteCarlo<'a> {
         Self {
             mesh,
             visibility,
-            params,
+            params: MonteCarloParams {
+                rays: params.rays.max(1),
+                ..params
+            },
             locators: (0..mesh.surface_polygons.len())
                 .map(|s| PatchLocator::new(mesh, s))
                 .collect(),
@@ -325,19 +353,18 @@ impl<'a> MonteCarlo<'a> {
         }
     }
 
-    fn row_of(&self, element: usize) -> &[(u32, f32)] {
+    fn row_of(&self, element: usize) -> &[(u32, u32)] {
         self.rows[element].get_or_init(|| self.trace(element))
     }
 
-    fn trace(&self, element: usize) -> Vec<(u32, f32)> {
+    fn trace(&self, element: usize) -> Vec<(u32, u32)> {
         let e = &self.mesh.elements[element];
         let corners: Vec<DVec3> = e.corners.iter().map(|&c| self.mesh.vertices[c as usize]).collect();
         let sampler = AreaSampler::new(&corners);
         let mut rng = stream(self.params.seed, element as u64);
         let lift = e.normal * self.visibility.offset();
-        let rays = self.params.rays.max(1);
-        let mut hits: Vec<u32> = Vec::with_capacity(rays);
-        for _ in 0..rays {
+        let mut hits: Vec<u32> = Vec::with_capacity(self.params.rays);
+        for _ in 0..self.params.rays {
             let x = sampler.sample(&mut rng) + lift;
             let d = cosine_direction(e.normal, &mut rng);
             let Some(hit) = self.visibility.first_hit(x.as_vec3(), d.as_vec3()) else {
@@ -347,20 +374,24 @@ impl<'a> MonteCarlo<'a> {
             if s == e.surface as usize || d.dot(self.mesh.surface_polygons[s].normal()) >= 0.0 {
                 continue; // a back face: absorbed, black
             }
-            if let Some(p) = self.locators[s].find(x + d * hit.t as f64) {
-                hits.push(p);
+            let y = x + d * hit.t as f64;
+            if let Some(p) = self.locators[s].find(y) {
+                hits.push(element_at(self.mesh, p, y));
             }
         }
         hits.sort_unstable();
-        let mut row: Vec<(u32, f32)> = Vec::new();
-        for p in hits {
+        let mut row: Vec<(u32, u32)> = Vec::new();
+        for h in hits {
             match row.last_mut() {
-                Some((q, n)) if *q == p => *n += 1.0,
-                _ => row.push((p, 1.0)),
+                Some((q, n)) if *q == h => *n += 1,
+                _ => row.push((h, 1)),
             }
         }
-        row.iter_mut().for_each(|(_, n)| *n /= rays as f32);
         row
+    }
+
+    fn fraction(&self, rays: u32) -> f64 {
+        rays as f64 / self.params.rays as f64
     }
 }
 
@@ -371,16 +402,29 @@ impl FormFactors for MonteCarlo<'_> {
 
     fn pair(&self, element: usize, patch: usize) -> f64 {
         let row = self.row_of(element);
-        match row.binary_search_by_key(&(patch as u32), |(p, _)| *p) {
-            Ok(i) => row[i].1 as f64,
+        let range = &self.mesh.patches[patch].elements;
+        let start = row.partition_point(|(h, _)| *h < range.start);
+        let end = row.partition_point(|(h, _)| *h < range.end);
+        self.fraction(row[start..end].iter().map(|(_, n)| n).sum())
+    }
+
+    /// The share of the element's rays that landed on `source` first.
+    fn element_pair(&self, element: usize, source: usize) -> Option<f64> {
+        let row = self.row_of(element);
+        Some(match row.binary_search_by_key(&(source as u32), |(h, _)| *h) {
+            Ok(i) => self.fraction(row[i].1),
             Err(_) => 0.0,
-        }
+        })
+    }
+
+    fn resolves_elements(&self) -> bool {
+        true
     }
 
     fn row(&self, element: usize, out: &mut [f32]) {
         out.fill(0.0);
-        for &(p, f) in self.row_of(element) {
-            out[p as usize] = f;
+        for &(h, n) in self.row_of(element) {
+            out[self.mesh.elements[h as usize].patch.0 as usize] += self.fraction(n) as f32;
         }
     }
 }

@@ -70,6 +70,7 @@ fn kernel(x: DVec3, nx: DVec3, y: DVec3, ny: DVec3) -> f64 {
 pub struct PointSampled<'a> {
     mesh: &'a Mesh,
     visibility: &'a Visibility,
+    samples: usize,
     sources: Vec<(Vec<Sample>, DVec3)>,
 }
 
@@ -88,8 +89,26 @@ impl<'a> PointSampled<'a> {
         Self {
             mesh,
             visibility,
+            samples,
             sources,
         }
+    }
+}
+
+impl PointSampled<'_> {
+    fn receive(&self, element: usize, samples: &[Sample], ny: DVec3) -> f64 {
+        let e = &self.mesh.elements[element];
+        samples
+            .iter()
+            .map(|s| {
+                let k = kernel(e.centre, e.normal, s.point, ny);
+                if k > 0.0 && self.visibility.visible(e.centre, e.normal, s.point, ny) {
+                    k * s.area
+                } else {
+                    0.0
+                }
+            })
+            .sum()
     }
 }
 
@@ -99,22 +118,25 @@ impl FormFactors for PointSampled<'_> {
     }
 
     fn pair(&self, element: usize, patch: usize) -> f64 {
-        let e = &self.mesh.elements[element];
-        if e.surface == self.mesh.patches[patch].surface {
+        if self.mesh.elements[element].surface == self.mesh.patches[patch].surface {
             return 0.0;
         }
         let (samples, ny) = &self.sources[patch];
-        samples
-            .iter()
-            .map(|s| {
-                let k = kernel(e.centre, e.normal, s.point, *ny);
-                if k > 0.0 && self.visibility.visible(e.centre, e.normal, s.point, *ny) {
-                    k * s.area
-                } else {
-                    0.0
-                }
-            })
-            .sum()
+        self.receive(element, samples, *ny)
+    }
+
+    /// The same sum over about as many sub-areas of the single source element.
+    fn element_pair(&self, element: usize, source: usize) -> Option<f64> {
+        let (e, s) = (&self.mesh.elements[element], &self.mesh.elements[source]);
+        if e.surface == s.surface {
+            return Some(0.0);
+        }
+        let corners: Vec<DVec3> = s.corners.iter().map(|&c| self.mesh.vertices[c as usize]).collect();
+        Some(self.receive(element, &samples_of(&corners, self.samples), s.normal))
+    }
+
+    fn resolves_elements(&self) -> bool {
+        true
     }
 }
 

@@ -61,12 +61,35 @@ struct SourcePatch {
     sub_points: Vec<DVec3>,
 }
 
+impl SourcePatch {
+    fn new(vertices: Vec<DVec3>, normal: DVec3, centre: DVec3, params: &RaycastParams) -> Self {
+        let centroid = |v: &[DVec3]| v.iter().copied().sum::<DVec3>() / v.len() as f64;
+        let radius = vertices.iter().map(|v| v.distance(centre)).fold(0.0, f64::max);
+        let probes = subdivide(&vertices, params.probe.max(1))
+            .iter()
+            .map(|s| centroid(s))
+            .collect();
+        let sub_areas = subdivide(&vertices, params.penumbra.max(1));
+        let sub_points = sub_areas.iter().map(|s| centroid(s)).collect();
+        Self {
+            vertices,
+            normal,
+            centre,
+            radius,
+            probes,
+            sub_areas,
+            sub_points,
+        }
+    }
+}
+
 /// The raycast form-factor engine over one mesh.
 pub struct Raycast<'a> {
     mesh: &'a Mesh,
     visibility: &'a Visibility,
     sources: Vec<SourcePatch>,
     element_orders: Vec<usize>,
+    params: RaycastParams,
 }
 
 impl<'a> Raycast<'a> {
@@ -75,30 +98,10 @@ impl<'a> Raycast<'a> {
     }
 
     pub fn with_params(mesh: &'a Mesh, visibility: &'a Visibility, params: RaycastParams) -> Self {
-        let centroid = |v: &[DVec3]| v.iter().copied().sum::<DVec3>() / v.len() as f64;
         let sources = mesh
             .patches
             .iter()
-            .map(|p| {
-                let vertices = p.polygon.vertices().to_vec();
-                let centre = p.polygon.centroid();
-                let radius = vertices.iter().map(|v| v.distance(centre)).fold(0.0, f64::max);
-                let probes = subdivide(&vertices, params.probe.max(1))
-                    .iter()
-                    .map(|s| centroid(s))
-                    .collect();
-                let sub_areas = subdivide(&vertices, params.penumbra.max(1));
-                let sub_points = sub_areas.iter().map(|s| centroid(s)).collect();
-                SourcePatch {
-                    vertices,
-                    normal: p.polygon.normal(),
-                    centre,
-                    radius,
-                    probes,
-                    sub_areas,
-                    sub_points,
-                }
-            })
+            .map(|p| SourcePatch::new(p.polygon.vertices().to_vec(), p.polygon.normal(), p.polygon.centroid(), &params))
             .collect();
         let element_orders = mesh
             .elements
@@ -135,6 +138,7 @@ impl<'a> Raycast<'a> {
             visibility,
             sources,
             element_orders,
+            params,
         }
     }
 
@@ -184,12 +188,31 @@ impl FormFactors for Raycast<'_> {
     }
 
     fn pair(&self, element: usize, patch: usize) -> f64 {
-        let e = &self.mesh.elements[element];
         let p = &self.mesh.patches[patch];
-        if e.surface == p.surface {
+        if self.mesh.elements[element].surface == p.surface {
             return 0.0;
         }
-        let s = &self.sources[patch];
+        self.receive(element, &self.sources[patch])
+    }
+
+    fn element_pair(&self, element: usize, source: usize) -> Option<f64> {
+        let (e, s) = (&self.mesh.elements[element], &self.mesh.elements[source]);
+        if e.surface == s.surface {
+            return Some(0.0);
+        }
+        let vertices = s.corners.iter().map(|&c| self.mesh.vertices[c as usize]).collect();
+        Some(self.receive(element, &SourcePatch::new(vertices, s.normal, s.centre, &self.params)))
+    }
+
+    fn resolves_elements(&self) -> bool {
+        true
+    }
+}
+
+impl Raycast<'_> {
+    /// F from element `element` to the source `s`, with visibility.
+    fn receive(&self, element: usize, s: &SourcePatch) -> f64 {
+        let e = &self.mesh.elements[element];
         // Whole-element culls: the source entirely behind the element's plane, or the
         // element entirely behind the source's plane.
         let corners = || e.corners.iter().map(|&c| self.mesh.vertices[c as usize]);

@@ -1,41 +1,43 @@
-//! Gauss–Seidel iteration on the patch system: each B_p is updated in place from the newest
-//! values, B_p ← (E_p + Σ_{q≠p} M_pq B_q) / (1 − M_pp). Usually about twice as fast as
-//! Jacobi per iteration count; inherently sequential over patches (channels run in parallel).
+//! Gauss–Seidel iteration: each element is updated in place from the newest values,
+//! B_e ← E_e + ρ_e H_e(B), with the patch means it gathers from kept current as elements
+//! change. Typically needs about half as many sweeps as Jacobi; inherently sequential over
+//! elements.
 
-use super::{PatchSystem, SolveOptions};
+use super::{SolveOptions, Transport};
 use crate::progress::Progress;
-use rayon::prelude::*;
 
-/// Returns (B per patch, iterations, relative residual).
-pub fn solve(system: &PatchSystem, options: &SolveOptions, progress: &dyn Progress) -> (Vec<[f64; 3]>, usize, f64) {
-    let n = system.patches;
-    let mut channels: Vec<Vec<f64>> = (0..3)
-        .map(|c| system.exitance.iter().map(|e| e[c]).collect())
-        .collect();
-    let assemble = |ch: &[Vec<f64>]| -> Vec<[f64; 3]> { (0..n).map(|p| [ch[0][p], ch[1][p], ch[2][p]]).collect() };
-    let mut residual = system.residual(&assemble(&channels));
+/// Returns (B per element, iterations, relative residual).
+pub fn solve(t: &Transport, options: &SolveOptions, progress: &dyn Progress) -> (Vec<[f64; 3]>, usize, f64) {
+    let mesh = t.mesh;
+    let mut b = t.exitance();
+    let mut bp = t.patch_means(&b);
+    let patch_area: Vec<f64> = mesh.patches.iter().map(|p| mesh.patch_area(p)).collect();
+    let mut residual = t.residual(&b);
     let mut iterations = 0;
     progress.start("gauss-seidel", options.max_iterations as u64);
     while residual > options.tolerance && iterations < options.max_iterations {
-        sweep(system, &mut channels);
+        sweep(t, &mut b, &mut bp, &patch_area);
         iterations += 1;
-        residual = system.residual(&assemble(&channels));
+        residual = t.residual(&b);
         progress.inc(1);
         progress.message(&format!("residual {residual:.2e}"));
     }
     progress.finish();
-    (assemble(&channels), iterations, residual)
+    (b, iterations, residual)
 }
 
-/// One Gauss–Seidel sweep over the patches, in place; `channels[c][p]` is B_p in channel c.
-pub fn sweep(system: &PatchSystem, channels: &mut [Vec<f64>]) {
-    let n = system.patches;
-    channels.par_iter_mut().enumerate().for_each(|(c, b)| {
-        let m = &system.matrix[c];
-        for p in 0..n {
-            let row = &m[p * n..(p + 1) * n];
-            let sum: f64 = row.iter().zip(b.iter()).map(|(m, x)| m * x).sum::<f64>() - row[p] * b[p];
-            b[p] = (system.exitance[p][c] + sum) / (1.0 - row[p]);
+/// One in-place Gauss–Seidel sweep over all elements; `bp` (patch means of `b`) and
+/// `patch_area` are kept consistent as elements change.
+pub fn sweep(t: &Transport, b: &mut [[f64; 3]], bp: &mut [[f64; 3]], patch_area: &[f64]) {
+    let mesh = t.mesh;
+    for (e, el) in mesh.elements.iter().enumerate() {
+        let h = t.irradiance_at(e, bp, b);
+        let (rho, ex) = (mesh.reflectance(el), mesh.exitance(el));
+        let q = el.patch.0 as usize;
+        for c in 0..3 {
+            let new = ex[c] + rho[c] * h[c];
+            bp[q][c] += (new - b[e][c]) * el.area / patch_area[q];
+            b[e][c] = new;
         }
-    });
+    }
 }

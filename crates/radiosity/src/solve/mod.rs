@@ -6,9 +6,17 @@
 //!
 //!   B_p = E_p + Σ_q M_pq B_q,   M_pq = Σ_{e∈p} (A_e / A_p) ρ_e F_{e→q},
 //!
-//! which the matrix solvers ([`direct`], [`jacobi`], [`gauss_seidel`]) solve before one final
-//! gather to the elements, and which [`progressive`] refinement solves by shooting patches'
-//! unshot radiosity to the elements. With one element per patch it is the plain system.
+//! Where a patch is close to an element its radiosity is not uniform enough to be gathered
+//! at its mean, so near pairs link element to element instead ([`crate::formfactor::NearField`]).
+//! The unknowns are then the element radiosities of the two-level system
+//!
+//!   B_e = E_e + ρ_e H_e,   H_e = Σ_{far q} F_{e→q} B_q + Σ_{near e'} F_{e→e'} B_e'
+//!
+//! ([`Transport`]). [`jacobi`] and [`gauss_seidel`] iterate it; [`direct`] factorises the
+//! patch-level system (near links summed back to their patches) by LU and removes the small
+//! near-field remainder by iterative refinement with the same factors; [`progressive`]
+//! refinement shoots patches' unshot radiosity (element by element to near receivers).
+//! With one element per patch it is the plain element system.
 //!
 //! Units: radiosity B, exitance E and irradiance H in W·m⁻²; power in W.
 
@@ -144,7 +152,7 @@ pub struct Solution {
     pub radiosity: Vec<[f64; 3]>,
     /// Irradiance H per element, W·m⁻².
     pub irradiance: Vec<[f64; 3]>,
-    /// Unshot radiosity per patch, W·m⁻² (zero for the matrix solvers).
+    /// Unshot radiosity per element, W·m⁻² (zero for the matrix solvers).
     pub unshot: Vec<[f64; 3]>,
     /// Power leaving the scene (hitting no surface), W.
     pub escaped_power: [f64; 3],
@@ -176,20 +184,19 @@ impl Solution {
         p
     }
 
-    /// Unshot power Σ U_p A_p per channel, W (energy not yet distributed).
+    /// Unshot power Σ u_e A_e per channel, W (energy not yet distributed).
     pub fn unshot_power(&self, mesh: &Mesh) -> [f64; 3] {
         let mut p = [0.0; 3];
-        for (patch, u) in mesh.patches.iter().zip(&self.unshot) {
-            let a = mesh.patch_area(patch);
+        for (e, u) in mesh.elements.iter().zip(&self.unshot) {
             for c in 0..3 {
-                p[c] += u[c] * a;
+                p[c] += u[c] * e.area;
             }
         }
         p
     }
 
     /// The ambient term of Cohen et al. (1988) per channel, W·m⁻²:
-    /// ambient = R · Σ U_p A_p / Σ A_p with R = 1 / (1 − ρ_avg), ρ_avg the area-weighted
+    /// ambient = R · Σ u_e A_e / Σ A_e with R = 1 / (1 − ρ_avg), ρ_avg the area-weighted
     /// mean reflectance. Displayed radiosity is B_e + ρ_e · ambient.
     pub fn ambient(&self, mesh: &Mesh) -> [f64; 3] {
         let total_area: f64 = mesh.elements.iter().map(|e| e.area).sum();
@@ -238,19 +245,19 @@ pub fn solve(
             let needed = CouplingMatrix::bytes_for(n, m)
                 + match kind {
                     SolverKind::Direct => 2 * 8 * (m as u128) * (m as u128) + 3 * 8 * (m as u128) * (m as u128),
-                    _ => 3 * 8 * (m as u128) * (m as u128),
+                    _ => 0,
                 };
             check_memory(kind, needed, options.memory_limit, n, m)?;
             let start = std::time::Instant::now();
             let k = CouplingMatrix::compute(ff, mesh, progress);
             let ff_seconds = start.elapsed().as_secs_f64();
-            let system = PatchSystem::assemble(mesh, &k);
+            let transport = Transport::new(mesh, &k);
             let (b, iterations, residual) = match kind {
-                SolverKind::Direct => direct::solve(&system),
-                SolverKind::Jacobi => jacobi::solve(&system, options, progress),
-                _ => gauss_seidel::solve(&system, options, progress),
+                SolverKind::Direct => direct::solve(&transport, options),
+                SolverKind::Jacobi => jacobi::solve(&transport, options, progress),
+                _ => gauss_seidel::solve(&transport, options, progress),
             };
-            let mut sol = gather(mesh, &k, &b);
+            let mut sol = transport.solution(b);
             sol.stats = SolveStats {
                 solver: kind,
                 iterations,
@@ -280,129 +287,160 @@ fn check_memory(kind: SolverKind, needed: u128, limit: u64, n: usize, m: usize) 
     Ok(())
 }
 
-/// The patch-level system B_p = E_p + Σ_q M_pq B_q, one matrix per channel.
-pub struct PatchSystem {
-    pub patches: usize,
-    /// E_p per channel, W·m⁻².
-    pub exitance: Vec<[f64; 3]>,
-    /// M per channel, row-major n×n.
-    pub matrix: [Vec<f64>; 3],
+/// The two-level transport operator over a computed coupling: H = T(B).
+pub struct Transport<'a> {
+    pub mesh: &'a Mesh,
+    pub coupling: &'a CouplingMatrix,
+    patch_area: Vec<f64>,
 }
 
-impl PatchSystem {
-    /// Assembles M_pq = Σ_{e∈p} (A_e / A_p) ρ_e F_{e→q} and E_p from the coupling matrix.
-    pub fn assemble(mesh: &Mesh, k: &CouplingMatrix) -> Self {
-        let m = mesh.patches.len();
-        let rows: Vec<([f64; 3], [Vec<f64>; 3])> = mesh
-            .patches
-            .par_iter()
-            .map(|patch| {
-                let area = mesh.patch_area(patch);
-                let mut ex = [0.0; 3];
-                let mut row: [Vec<f64>; 3] = std::array::from_fn(|_| vec![0.0; m]);
-                for e in patch.elements.clone() {
-                    let el = &mesh.elements[e as usize];
-                    let w = el.area / area;
-                    let rho = mesh.reflectance(el);
-                    let exit = mesh.exitance(el);
-                    for c in 0..3 {
-                        ex[c] += w * exit[c];
-                        let scale = w * rho[c];
-                        for (dst, &f) in row[c].iter_mut().zip(k.row(e as usize)) {
-                            *dst += scale * f as f64;
-                        }
-                    }
-                }
-                (ex, row)
-            })
-            .collect();
-        let mut exitance = Vec::with_capacity(m);
-        let mut matrix: [Vec<f64>; 3] = std::array::from_fn(|_| Vec::with_capacity(m * m));
-        for (ex, row) in rows {
-            exitance.push(ex);
-            for c in 0..3 {
-                matrix[c].extend_from_slice(&row[c]);
-            }
-        }
+impl<'a> Transport<'a> {
+    pub fn new(mesh: &'a Mesh, coupling: &'a CouplingMatrix) -> Self {
+        let patch_area = mesh.patches.iter().map(|p| mesh.patch_area(p)).collect();
         Self {
-            patches: m,
-            exitance,
-            matrix,
+            mesh,
+            coupling,
+            patch_area,
         }
     }
 
-    /// Relative residual ‖E + M B − B‖₂ / ‖E‖₂ over all channels.
-    pub fn residual(&self, b: &[[f64; 3]]) -> f64 {
-        let n = self.patches;
-        let (num, den) = (0..n)
-            .into_par_iter()
-            .map(|p| {
-                let mut num = 0.0;
-                let mut den = 0.0;
-                for c in 0..3 {
-                    let row = &self.matrix[c][p * n..(p + 1) * n];
-                    let mb: f64 = row.iter().zip(b).map(|(m, b)| m * b[c]).sum();
-                    let r = self.exitance[p][c] + mb - b[p][c];
-                    num += r * r;
-                    den += self.exitance[p][c] * self.exitance[p][c];
+    /// Emitted exitance E per element.
+    pub fn exitance(&self) -> Vec<[f64; 3]> {
+        self.mesh.elements.iter().map(|e| self.mesh.exitance(e)).collect()
+    }
+
+    /// Area-weighted mean of per-element values over each patch.
+    pub fn patch_means(&self, b: &[[f64; 3]]) -> Vec<[f64; 3]> {
+        self.mesh
+            .patches
+            .iter()
+            .zip(&self.patch_area)
+            .map(|(p, a)| {
+                let mut m = [0.0; 3];
+                for e in p.elements.clone() {
+                    let el = &self.mesh.elements[e as usize];
+                    for c in 0..3 {
+                        m[c] += b[e as usize][c] * el.area / a;
+                    }
                 }
-                (num, den)
+                m
             })
-            .reduce(|| (0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
+            .collect()
+    }
+
+    /// H_e for one element given patch means `bp` and element values `b`.
+    pub fn irradiance_at(&self, e: usize, bp: &[[f64; 3]], b: &[[f64; 3]]) -> [f64; 3] {
+        let mut h = [0.0; 3];
+        for (f, q) in self.coupling.row(e).iter().zip(bp) {
+            let f = *f as f64;
+            h[0] += f * q[0];
+            h[1] += f * q[1];
+            h[2] += f * q[2];
+        }
+        for &(s, f) in &self.coupling.near[e] {
+            for c in 0..3 {
+                h[c] += f as f64 * b[s as usize][c];
+            }
+        }
+        h
+    }
+
+    /// H = T(B) for every element, in parallel.
+    pub fn irradiance(&self, b: &[[f64; 3]]) -> Vec<[f64; 3]> {
+        let bp = self.patch_means(b);
+        (0..b.len()).into_par_iter().map(|e| self.irradiance_at(e, &bp, b)).collect()
+    }
+
+    /// B' = E + ρ T(B).
+    pub fn apply(&self, b: &[[f64; 3]]) -> Vec<[f64; 3]> {
+        let h = self.irradiance(b);
+        self.mesh
+            .elements
+            .iter()
+            .zip(h)
+            .map(|(e, h)| {
+                let (rho, ex) = (self.mesh.reflectance(e), self.mesh.exitance(e));
+                std::array::from_fn(|c| ex[c] + rho[c] * h[c])
+            })
+            .collect()
+    }
+
+    /// Area-weighted relative residual ‖E + ρT(B) − B‖ / ‖E‖ over elements and channels.
+    pub fn residual(&self, b: &[[f64; 3]]) -> f64 {
+        let next = self.apply(b);
+        let (mut num, mut den) = (0.0, 0.0);
+        for ((e, x), y) in self.mesh.elements.iter().zip(b).zip(&next) {
+            let ex = self.mesh.exitance(e);
+            for c in 0..3 {
+                num += e.area * (y[c] - x[c]).powi(2);
+                den += e.area * ex[c] * ex[c];
+            }
+        }
         if den > 0.0 {
             (num / den).sqrt()
         } else {
             num.sqrt()
         }
     }
-}
 
-/// Gathers element radiosity from patch radiosity: H_e = Σ_q F_{e→q} B_q, B_e = E_e + ρ_e H_e,
-/// and the escaped power Σ_q B_q (A_q − Σ_e A_e F_{e→q}).
-fn gather(mesh: &Mesh, k: &CouplingMatrix, b: &[[f64; 3]]) -> Solution {
-    let (irradiance, radiosity): (Vec<[f64; 3]>, Vec<[f64; 3]>) = mesh
-        .elements
-        .par_iter()
-        .enumerate()
-        .map(|(i, e)| {
-            let row = k.row(i);
-            let mut h = [0.0; 3];
-            for (f, bq) in row.iter().zip(b) {
-                for c in 0..3 {
-                    h[c] += *f as f64 * bq[c];
-                }
+    /// The solution for element radiosities `b`: H = T(B), and the escaped power
+    /// Σ_e B_e A_e − Σ_e H_e A_e (what leaves all surfaces minus what lands on them).
+    pub fn solution(&self, b: Vec<[f64; 3]>) -> Solution {
+        let irradiance = self.irradiance(&b);
+        let mut escaped = [0.0; 3];
+        for ((e, bb), h) in self.mesh.elements.iter().zip(&b).zip(&irradiance) {
+            for c in 0..3 {
+                escaped[c] += (bb[c] - h[c]) * e.area;
             }
-            let rho = mesh.reflectance(e);
-            let ex = mesh.exitance(e);
-            (h, std::array::from_fn(|c| ex[c] + rho[c] * h[c]))
-        })
-        .unzip();
-    // Column sums: the power-weighted fraction of each patch's output landing on elements.
-    let mut landed = vec![0.0f64; mesh.patches.len()];
-    for (i, e) in mesh.elements.iter().enumerate() {
-        for (l, f) in landed.iter_mut().zip(k.row(i)) {
-            *l += e.area * *f as f64;
+        }
+        Solution {
+            radiosity: b,
+            irradiance,
+            unshot: vec![[0.0; 3]; self.mesh.elements.len()],
+            escaped_power: escaped,
+            stats: SolveStats {
+                solver: SolverKind::Direct,
+                iterations: 0,
+                residual: 0.0,
+                seconds: 0.0,
+                form_factor_seconds: 0.0,
+            },
         }
     }
-    let mut escaped = [0.0; 3];
-    for ((patch, bq), l) in mesh.patches.iter().zip(b).zip(&landed) {
-        let a = mesh.patch_area(patch);
-        for c in 0..3 {
-            escaped[c] += bq[c] * (a - l);
+
+    /// The patch-level system with near links summed back to their patches:
+    /// M_pq = Σ_{e∈p} (A_e / A_p) ρ_e F_{e→q}, per channel, row-major.
+    pub fn patch_matrix(&self) -> [Vec<f64>; 3] {
+        let m = self.mesh.patches.len();
+        let rows: Vec<[Vec<f64>; 3]> = self
+            .mesh
+            .patches
+            .par_iter()
+            .zip(&self.patch_area)
+            .map(|(patch, area)| {
+                let mut row: [Vec<f64>; 3] = std::array::from_fn(|_| vec![0.0; m]);
+                for e in patch.elements.clone() {
+                    let el = &self.mesh.elements[e as usize];
+                    let w = el.area / area;
+                    let rho = self.mesh.reflectance(el);
+                    let full = self.coupling.full_row(self.mesh, e as usize);
+                    for c in 0..3 {
+                        let scale = w * rho[c];
+                        for (dst, f) in row[c].iter_mut().zip(&full) {
+                            *dst += scale * f;
+                        }
+                    }
+                }
+                row
+            })
+            .collect();
+        let mut matrix: [Vec<f64>; 3] = std::array::from_fn(|_| Vec::with_capacity(m * m));
+        for row in rows {
+            for c in 0..3 {
+                matrix[c].extend_from_slice(&row[c]);
+            }
         }
-    }
-    Solution {
-        radiosity,
-        irradiance,
-        unshot: vec![[0.0; 3]; mesh.patches.len()],
-        escaped_power: escaped,
-        stats: SolveStats {
-            solver: SolverKind::Direct,
-            iterations: 0,
-            residual: 0.0,
-            seconds: 0.0,
-            form_factor_seconds: 0.0,
-        },
+        matrix
     }
 }
 
