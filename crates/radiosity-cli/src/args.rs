@@ -35,7 +35,7 @@ pub enum Command {
 #[derive(Debug, Clone, Args)]
 pub struct SolveArgs {
     /// Maximum element edge length in metres (overrides --elements).
-    #[arg(long, value_name = "METRES")]
+    #[arg(long, value_name = "METRES", allow_hyphen_values = true)]
     pub max_element_size: Option<f64>,
     /// Approximate total number of elements [default: 4000].
     #[arg(long, value_name = "N")]
@@ -52,7 +52,7 @@ pub struct SolveArgs {
     pub form_factor: Option<String>,
     /// Relative residual (matrix solvers) or unshot power fraction (progressive) to stop at
     /// [default: 1e-3].
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     pub tolerance: Option<f64>,
     /// Stop progressive refinement after this many shots.
     #[arg(long)]

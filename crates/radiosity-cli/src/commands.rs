@@ -151,6 +151,19 @@ fn render(args: RenderArgs) -> Result<()> {
     });
     let width = args.width.or(file_settings.width).unwrap_or(512);
     let height = args.height.or(file_settings.height).unwrap_or(512);
+    let max = radiosity::render::MAX_IMAGE_SIZE;
+    for (name, v) in [("--width", width), ("--height", height)] {
+        if v == 0 || v > max {
+            bail!("{name} must be between 1 and {max} pixels, got {v}");
+        }
+    }
+    if args.samples == 0 || args.samples > radiosity::render::MAX_SAMPLES_PER_AXIS {
+        bail!(
+            "--samples must be between 1 and {}, got {}",
+            radiosity::render::MAX_SAMPLES_PER_AXIS,
+            args.samples
+        );
+    }
     let exposure = args.exposure.or(file_settings.exposure).unwrap_or(0.0);
     if !exposure.is_finite() || exposure.abs() > 64.0 {
         bail!("--exposure must be a finite number of stops between -64 and 64, got {exposure}");

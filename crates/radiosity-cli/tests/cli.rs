@@ -151,9 +151,9 @@ fn saved_solution_renders_from_another_viewpoint() {
 fn bad_inputs_fail_cleanly() {
     let d = tmp();
     let dir = d.path();
-    let mtl = write(dir, "m.mtl", "newmtl white\nKd 0.5 0.5 0.5\nKe 0 0 0\nnewmtl hot\nKd 1.2 0.5 0.5\n");
+    write(dir, "m.mtl", "newmtl white\nKd 0.5 0.5 0.5\nKe 0 0 0\n");
+    write(dir, "hot.mtl", "newmtl hot\nKd 1.2 0.5 0.5\n");
     let good_face = "mtllib m.mtl\no quad\nusemtl white\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n";
-    let _ = mtl;
     let cases: Vec<(&str, String, Vec<&str>)> = vec![
         ("missing.obj", String::new(), vec!["missing.obj"]),
         ("malformed.obj", good_face.replace("v 1 1 0", "v 1 x 0"), vec!["malformed.obj"]),
@@ -161,7 +161,7 @@ fn bad_inputs_fail_cleanly() {
         ("nan.obj", good_face.replace("v 1 1 0", "v 1 nan 0"), vec!["nan.obj"]),
         ("degenerate.obj", good_face.replace("v 1 1 0", "v 2 0 0").replace("v 0 1 0", "v 3 0 0"), vec!["degenerate.obj", "quad"]),
         ("nomat.obj", good_face.replace("usemtl white", "usemtl plaid"), vec!["nomat.obj", "plaid"]),
-        ("rho.obj", good_face.replace("usemtl white", "usemtl hot"), vec!["hot"]),
+        ("rho.obj", good_face.replace("m.mtl", "hot.mtl").replace("usemtl white", "usemtl hot"), vec!["hot.mtl", "hot", "1.2"]),
         ("huge.obj", good_face.replace("v 1 1 0", "v 1e300 1 0"), vec!["huge.obj"]),
         ("scene.txt", "hello".into(), vec!["scene.txt"]),
         ("bad.json", "{\n  \"name\": \"x\",\n  \"surfaces\": [\n}".into(), vec!["bad.json", "line"]),
@@ -180,6 +180,7 @@ fn bad_options_fail_cleanly() {
     let d = tmp();
     let out = d.path().join("x.png");
     let o_str = out.to_str().unwrap();
+    let bmp = format!("{o_str}.bmp");
     let cases: Vec<(Vec<&str>, &str)> = vec![
         (vec!["render", "-o", o_str, "--width", "0"], "width"),
         (vec!["render", "-o", o_str, "--width", "100000"], "width"),
@@ -190,7 +191,7 @@ fn bad_options_fail_cleanly() {
         (vec!["render", "-o", o_str, "--eye", "1,2"], "x,y,z"),
         (vec!["render", "-o", o_str, "--fov", "0"], "fov"),
         (vec!["solve", "--solver", "direct", "--elements", "200000", "--patch-subdivision", "1"], "MiB"),
-        (vec!["render", "-o", &format!("{o_str}.bmp")], "bmp"),
+        (vec!["render", "-o", &bmp], "bmp"),
         (vec!["render", "--solution", "/nonexistent/sol.json", "-o", o_str], "sol.json"),
     ];
     for (args, needle) in cases {

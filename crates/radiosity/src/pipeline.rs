@@ -29,11 +29,11 @@ pub struct Solved {
 /// Why solving failed.
 #[derive(Debug, thiserror::Error)]
 pub enum PipelineError {
-    #[error("meshing: {0}")]
+    #[error("meshing")]
     Mesh(#[from] MeshError),
-    #[error("solving: {0}")]
+    #[error("solving")]
     Solve(#[from] SolveError),
-    #[error("rendering: {0}")]
+    #[error("rendering")]
     Render(#[from] RenderError),
 }
 

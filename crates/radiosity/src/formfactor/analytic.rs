@@ -40,6 +40,7 @@ use crate::mesh::Mesh;
 use glam::DVec3;
 use std::cmp::Ordering;
 use std::collections::BinaryHeap;
+use std::sync::OnceLock;
 
 /// Visibility probes per source axis in the mesh engines (probe² rays per receiver point).
 pub const PROBE: usize = 2;
@@ -158,6 +159,7 @@ pub struct AnalyticPoint<'a> {
     mesh: &'a Mesh,
     visibility: &'a Visibility,
     sources: Vec<ProbedSource>,
+    element_sources: ElementSources,
 }
 
 impl<'a> AnalyticPoint<'a> {
@@ -166,7 +168,21 @@ impl<'a> AnalyticPoint<'a> {
             mesh,
             visibility,
             sources: probed_patches(mesh),
+            element_sources: ElementSources::new(mesh),
         }
+    }
+}
+
+/// Elements as sources for the near field, prepared on first use.
+struct ElementSources(Vec<OnceLock<ProbedSource>>);
+
+impl ElementSources {
+    fn new(mesh: &Mesh) -> Self {
+        Self((0..mesh.elements.len()).map(|_| OnceLock::new()).collect())
+    }
+
+    fn get(&self, mesh: &Mesh, e: usize) -> &ProbedSource {
+        self.0[e].get_or_init(|| ProbedSource::new(&corners(mesh, e), PROBE, PENUMBRA))
     }
 }
 
@@ -205,8 +221,7 @@ impl FormFactors for AnalyticPoint<'_> {
         if e.surface == s.surface {
             return Some(0.0);
         }
-        let source = ProbedSource::new(&corners(self.mesh, source), PROBE, PENUMBRA);
-        Some(self.receive(element, &source))
+        Some(self.receive(element, self.element_sources.get(self.mesh, source)))
     }
 
     fn resolves_elements(&self) -> bool {
@@ -225,6 +240,7 @@ pub struct AnalyticPolygon<'a> {
     mesh: &'a Mesh,
     visibility: &'a Visibility,
     sources: Vec<ProbedSource>,
+    element_sources: ElementSources,
 }
 
 impl<'a> AnalyticPolygon<'a> {
@@ -233,6 +249,7 @@ impl<'a> AnalyticPolygon<'a> {
             mesh,
             visibility,
             sources: probed_patches(mesh),
+            element_sources: ElementSources::new(mesh),
         }
     }
 }
@@ -275,8 +292,7 @@ impl FormFactors for AnalyticPolygon<'_> {
         if e.surface == s.surface {
             return Some(0.0);
         }
-        let source = ProbedSource::new(&corners(self.mesh, source), PROBE, PENUMBRA);
-        Some(self.receive(element, &source))
+        Some(self.receive(element, self.element_sources.get(self.mesh, source)))
     }
 
     fn resolves_elements(&self) -> bool {

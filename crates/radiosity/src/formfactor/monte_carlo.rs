@@ -209,9 +209,9 @@ pub fn monte_carlo_pair(problem: &PairProblem, rays: usize, seed: u64) -> Estima
     }
 }
 
-/// Finds the patch of one surface containing a point: a uniform grid over the surface's
-/// plane, each cell listing the patches whose bounds overlap it.
-struct PatchLocator {
+/// Finds the element of one surface containing a point: a uniform grid over the surface's
+/// plane, each cell listing the elements whose bounds overlap it.
+struct ElementLocator {
     origin: DVec3,
     u: DVec3,
     w: DVec3,
@@ -219,11 +219,11 @@ struct PatchLocator {
     cell: DVec2,
     dims: [usize; 2],
     cells: Vec<Vec<u32>>,
-    /// Per patch: its 2-D vertex loop.
+    /// Per element: its index and 2-D vertex loop.
     loops: Vec<(u32, Vec<DVec2>)>,
 }
 
-impl PatchLocator {
+impl ElementLocator {
     fn new(mesh: &Mesh, surface: usize) -> Self {
         let poly = &mesh.surface_polygons[surface];
         let origin = poly.vertices()[0];
@@ -231,18 +231,18 @@ impl PatchLocator {
         let w = poly.normal().cross(u);
         let flat = |p: DVec3| DVec2::new((p - origin).dot(u), (p - origin).dot(w));
         let loops: Vec<(u32, Vec<DVec2>)> = mesh
-            .patches
+            .elements
             .iter()
             .enumerate()
-            .filter(|(_, p)| p.surface as usize == surface)
-            .map(|(i, p)| (i as u32, p.polygon.vertices().iter().map(|&v| flat(v)).collect()))
+            .filter(|(_, e)| e.surface as usize == surface)
+            .map(|(i, e)| (i as u32, e.corners.iter().map(|&c| flat(mesh.vertices[c as usize])).collect()))
             .collect();
         let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
         for q in loops.iter().flat_map(|(_, l)| l) {
             lo = lo.min(*q);
             hi = hi.max(*q);
         }
-        let side = ((loops.len().max(1) as f64).sqrt().ceil() as usize).clamp(1, 256);
+        let side = ((loops.len().max(1) as f64).sqrt().ceil() as usize).clamp(1, 1024);
         let dims = [side, side];
         let cell = ((hi - lo) / side as f64).max(DVec2::splat(1e-300));
         let mut cells = vec![Vec::new(); side * side];
@@ -273,7 +273,7 @@ impl PatchLocator {
         }
     }
 
-    /// The patch containing `p` (on the surface's plane); at a boundary or outside by
+    /// The element containing `p` (on the surface's plane); at a boundary or outside by
     /// rounding, the nearest candidate (largest minimum signed edge distance).
     fn find(&self, p: DVec3) -> Option<u32> {
         let q = DVec2::new((p - self.origin).dot(self.u), (p - self.origin).dot(self.w));
@@ -283,7 +283,7 @@ impl PatchLocator {
         let candidates = &self.cells[index(0) * self.dims[1] + index(1)];
         let mut best: Option<(f64, u32)> = None;
         for &k in candidates {
-            let (patch, l) = &self.loops[k as usize];
+            let (element, l) = &self.loops[k as usize];
             let n = l.len();
             let inside = (0..n)
                 .map(|i| {
@@ -292,34 +292,11 @@ impl PatchLocator {
                 })
                 .fold(f64::INFINITY, f64::min);
             if best.is_none_or(|(d, _)| inside > d) {
-                best = Some((inside, *patch));
+                best = Some((inside, *element));
             }
         }
         best.map(|(_, p)| p)
     }
-}
-
-/// The element of `patch` containing the point `y` (on its plane): the one with the largest
-/// minimum signed distance to its edges, so that a point on a shared edge or just outside by
-/// rounding still gets one.
-fn element_at(mesh: &Mesh, patch: u32, y: DVec3) -> u32 {
-    let range = mesh.patches[patch as usize].elements.clone();
-    let mut best = (f64::NEG_INFINITY, range.start);
-    for i in range {
-        let e = &mesh.elements[i as usize];
-        let n = e.corners.len();
-        let inside = (0..n)
-            .map(|k| {
-                let a = mesh.vertices[e.corners[k] as usize];
-                let b = mesh.vertices[e.corners[(k + 1) % n] as usize];
-                (b - a).cross(y - a).dot(e.normal) / (b - a).length().max(1e-300)
-            })
-            .fold(f64::INFINITY, f64::min);
-        if inside > best.0 {
-            best = (inside, i);
-        }
-    }
-    best.1
 }
 
 /// The `monte-carlo` mesh engine (see the module docs).
@@ -327,7 +304,7 @@ pub struct MonteCarlo<'a> {
     mesh: &'a Mesh,
     visibility: &'a Visibility,
     params: MonteCarloParams,
-    locators: Vec<PatchLocator>,
+    locators: Vec<ElementLocator>,
     /// Per element: (element hit, rays) for every element hit, sorted by element (and so by
     /// patch: a patch's elements are contiguous).
     rows: Vec<OnceLock<Vec<(u32, u32)>>>,
@@ -347,7 +324,7 @@ impl<'a> MonteCarlo<'a> {
                 ..params
             },
             locators: (0..mesh.surface_polygons.len())
-                .map(|s| PatchLocator::new(mesh, s))
+                .map(|s| ElementLocator::new(mesh, s))
                 .collect(),
             rows: (0..mesh.elements.len()).map(|_| OnceLock::new()).collect(),
         }
@@ -374,9 +351,8 @@ impl<'a> MonteCarlo<'a> {
             if s == e.surface as usize || d.dot(self.mesh.surface_polygons[s].normal()) >= 0.0 {
                 continue; // a back face: absorbed, black
             }
-            let y = x + d * hit.t as f64;
-            if let Some(p) = self.locators[s].find(y) {
-                hits.push(element_at(self.mesh, p, y));
+            if let Some(h) = self.locators[s].find(x + d * hit.t as f64) {
+                hits.push(h);
             }
         }
         hits.sort_unstable();

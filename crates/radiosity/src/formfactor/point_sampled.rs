@@ -27,6 +27,7 @@ use crate::mesh::Mesh;
 use glam::DVec3;
 use rayon::prelude::*;
 use std::f64::consts::PI;
+use std::sync::OnceLock;
 
 /// Sub-areas per patch in the mesh engine (4 × 4 on a quad patch).
 pub const DEFAULT_SAMPLES: usize = 16;
@@ -72,6 +73,8 @@ pub struct PointSampled<'a> {
     visibility: &'a Visibility,
     samples: usize,
     sources: Vec<(Vec<Sample>, DVec3)>,
+    /// Elements as sources for the near field, divided on first use.
+    element_sources: Vec<OnceLock<Vec<Sample>>>,
 }
 
 impl<'a> PointSampled<'a> {
@@ -91,6 +94,7 @@ impl<'a> PointSampled<'a> {
             visibility,
             samples,
             sources,
+            element_sources: (0..mesh.elements.len()).map(|_| OnceLock::new()).collect(),
         }
     }
 }
@@ -131,8 +135,11 @@ impl FormFactors for PointSampled<'_> {
         if e.surface == s.surface {
             return Some(0.0);
         }
-        let corners: Vec<DVec3> = s.corners.iter().map(|&c| self.mesh.vertices[c as usize]).collect();
-        Some(self.receive(element, &samples_of(&corners, self.samples), s.normal))
+        let samples = self.element_sources[source].get_or_init(|| {
+            let corners: Vec<DVec3> = s.corners.iter().map(|&c| self.mesh.vertices[c as usize]).collect();
+            samples_of(&corners, self.samples)
+        });
+        Some(self.receive(element, samples, s.normal))
     }
 
     fn resolves_elements(&self) -> bool {

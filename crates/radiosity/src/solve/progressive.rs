@@ -89,6 +89,14 @@ impl Progressive {
             .collect()
     }
 
+    /// Finds the near field for `ff` now rather than on the first shot (so that timing the
+    /// shots, e.g. in [`crate::compare`], leaves this form-factor set-up out).
+    pub fn prepare(&mut self, mesh: &Mesh, ff: &dyn FormFactors) {
+        if self.near.is_none() {
+            self.near = Some(NearField::for_method(mesh, ff));
+        }
+    }
+
     /// Shots taken so far.
     pub fn shots(&self) -> usize {
         self.shots
