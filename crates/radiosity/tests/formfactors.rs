@@ -410,16 +410,19 @@ fn mesh_engines_agree_with_the_exact_element_to_patch_factor() {
             }
         }
         let rel = err / total;
-        // Relative L1 error of the whole coupling. The point methods (analytic-point,
-        // point-sampled, hemicube) use the element's centre, exact only to O(size²/r²),
-        // about 10 % for elements next to the neighbouring face; raycast's n×n Gauss points
-        // (n = ⌈size/distance⌉) measured 4.6e-3; Monte Carlo's 4096 rays per element give
-        // ~0.5/√(4096 F) per entry.
+        // Relative L1 error of the whole coupling (all 96 × 24 entries). The element-centre
+        // methods are exact only to O(size²/r²) for a finite element, worst next to the
+        // neighbouring face: measured 1.4e-2 (analytic-point), 1.6e-2 (hemicube, plus pixel
+        // aliasing) and 3.6e-2 (point-sampled, plus its midpoint sum over 4×4 sub-areas);
+        // raycast's n×n Gauss points (n = ⌈size/distance⌉) 4.6e-3. Monte Carlo's entries
+        // are binomial, E|F̂ − F| ≈ √(2F/πN) with N = 4096: about 6 % of an entry F ≈ 1/24,
+        // measured 4.8e-2.
         let tol = match method {
             AnalyticPolygon => 1e-6,
             Raycast => 1e-2,
-            AnalyticPoint | PointSampled | Hemicube => 0.1,
-            MonteCarlo => 0.1,
+            AnalyticPoint | Hemicube => 3e-2,
+            PointSampled => 6e-2,
+            MonteCarlo => 8e-2,
         };
         eprintln!("{method:>16}: relative L1 error of the coupling {rel:.2e}");
         assert!(rel <= tol, "{method}: relative L1 error {rel:.2e} (tolerance {tol:.0e})");

@@ -88,8 +88,17 @@ pub struct Raycast<'a> {
     mesh: &'a Mesh,
     visibility: &'a Visibility,
     sources: Vec<SourcePatch>,
-    element_orders: Vec<usize>,
-    params: RaycastParams,
+    /// Receiver quadrature and visibility points of every element.
+    receivers: Vec<ReceiverPoints>,
+    /// Every element as a source (for near-field element-to-element pairs).
+    element_sources: Vec<SourcePatch>,
+}
+
+/// An element's quadrature points (weights summing to 1) and the points it casts
+/// visibility rays from (the quadrature points up to order 2, else a 2×2 Gauss subset).
+struct ReceiverPoints {
+    points: Vec<(DVec3, f64)>,
+    visibility: Vec<(DVec3, f64)>,
 }
 
 impl<'a> Raycast<'a> {
@@ -103,7 +112,7 @@ impl<'a> Raycast<'a> {
             .iter()
             .map(|p| SourcePatch::new(p.polygon.vertices().to_vec(), p.polygon.normal(), p.polygon.centroid(), &params))
             .collect();
-        let element_orders = mesh
+        let element_orders: Vec<usize> = mesh
             .elements
             .iter()
             .map(|e| {
@@ -133,12 +142,38 @@ impl<'a> Raycast<'a> {
                 }
             })
             .collect();
+        let receivers = mesh
+            .elements
+            .iter()
+            .zip(&element_orders)
+            .map(|(e, &order)| {
+                let verts: Vec<DVec3> = e.corners.iter().map(|&c| mesh.vertices[c as usize]).collect();
+                let mut points = Vec::with_capacity(order * order);
+                element_points(&verts, e.centre, order, &mut points);
+                let visibility = if order <= 2 {
+                    points.clone()
+                } else {
+                    let mut vis = Vec::with_capacity(4);
+                    element_points(&verts, e.centre, 2, &mut vis);
+                    vis
+                };
+                ReceiverPoints { points, visibility }
+            })
+            .collect();
+        let element_sources = mesh
+            .elements
+            .iter()
+            .map(|e| {
+                let vertices = e.corners.iter().map(|&c| mesh.vertices[c as usize]).collect();
+                SourcePatch::new(vertices, e.normal, e.centre, &params)
+            })
+            .collect();
         Self {
             mesh,
             visibility,
             sources,
-            element_orders,
-            params,
+            receivers,
+            element_sources,
         }
     }
 
@@ -200,8 +235,7 @@ impl FormFactors for Raycast<'_> {
         if e.surface == s.surface {
             return Some(0.0);
         }
-        let vertices = s.corners.iter().map(|&c| self.mesh.vertices[c as usize]).collect();
-        Some(self.receive(element, &SourcePatch::new(vertices, s.normal, s.centre, &self.params)))
+        Some(self.receive(element, &self.element_sources[source]))
     }
 
     fn resolves_elements(&self) -> bool {
@@ -221,24 +255,16 @@ impl Raycast<'_> {
         {
             return 0.0;
         }
-        let order = self.element_orders[element];
-        let verts: Vec<DVec3> = corners().collect();
-        let mut points = Vec::with_capacity(order * order);
-        element_points(&verts, e.centre, order, &mut points);
+        let points = &self.receivers[element];
         let unoccluded: f64 = points
+            .points
             .iter()
             .map(|&(x, w)| w * point_to_polygon(x, e.normal, &s.vertices, s.normal))
             .sum();
         if unoccluded <= 0.0 {
             return 0.0;
         }
-        let fraction = if order <= 2 {
-            self.visible_fraction(&points, e.normal, s)
-        } else {
-            let mut vis = Vec::with_capacity(4);
-            element_points(&verts, e.centre, 2, &mut vis);
-            self.visible_fraction(&vis, e.normal, s)
-        };
+        let fraction = self.visible_fraction(&points.visibility, e.normal, s);
         unoccluded * fraction
     }
 }
