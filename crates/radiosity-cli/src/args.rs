@@ -57,6 +57,17 @@ pub struct SolveArgs {
     /// Stop progressive refinement after this many shots.
     #[arg(long)]
     pub max_shots: Option<usize>,
+    /// Adaptive meshing: start coarse (a quarter of --elements) and split elements where the
+    /// radiosity changes fast, up to --elements in total.
+    #[arg(long)]
+    pub adaptive: bool,
+    /// Adaptive: split where neighbouring elements differ by more than this fraction of the
+    /// mean radiosity [default: 0.1].
+    #[arg(long, value_name = "X", requires = "adaptive")]
+    pub refine_threshold: Option<f64>,
+    /// Adaptive: how many times an element may be split [default: 3].
+    #[arg(long, value_name = "D", requires = "adaptive")]
+    pub max_depth: Option<u8>,
     /// Show no progress bars and no summary.
     #[arg(long, short)]
     pub quiet: bool,

@@ -67,8 +67,10 @@ pub fn run(args: FormfactorArgs) -> Result<()> {
     let Some(path) = args.file else {
         bail!("give a problem file, or --table");
     };
-    let text = std::fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?;
-    let problem = PairProblem::from_json(&text).with_context(|| format!("loading {}", path.display()))?;
+    let text =
+        std::fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?;
+    let problem =
+        PairProblem::from_json(&text).with_context(|| format!("loading {}", path.display()))?;
     for method in methods {
         println!("{}", solve_pair(&problem, method, &settings).to_json_line());
     }

@@ -119,6 +119,9 @@ impl MeshArgs {
             form_factor: self.form_factor.clone(),
             tolerance: self.tolerance,
             max_shots: None,
+            adaptive: false,
+            refine_threshold: None,
+            max_depth: None,
             quiet: self.quiet,
         }
     }

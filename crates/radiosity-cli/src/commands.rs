@@ -8,7 +8,8 @@ use radiosity::formfactor::FormFactorMethod;
 use radiosity::io::scene_file::{load_any, SceneSettings};
 use radiosity::io::solution_file::SolutionFile;
 use radiosity::mesh::MeshOptions;
-use radiosity::pipeline::{render_elements, solve_scene, Shaded, SolveSettings, Solved};
+use radiosity::pipeline::{render_elements, solve_scene, solve_scene_adaptive, Shaded, SolveSettings, Solved};
+use radiosity::refine::RefineOptions;
 use radiosity::render::RenderOptions;
 use radiosity::report::Report;
 use radiosity::scene::{Camera, Scene};
@@ -78,9 +79,27 @@ pub(crate) fn solve_settings(args: &SolveArgs, file: &SceneSettings) -> Result<S
     })
 }
 
-fn run_solve(scene: &Scene, settings: &SolveSettings, quiet: bool) -> Result<Solved> {
+fn run_solve(scene: &Scene, settings: &SolveSettings, args: &SolveArgs) -> Result<Solved> {
+    let quiet = args.quiet;
     let bars = Bars::new(quiet);
-    let solved = solve_scene(scene, settings, &bars)?;
+    let solved = if args.adaptive {
+        let mut refine = RefineOptions {
+            max_elements: Some(settings.mesh.elements),
+            ..RefineOptions::default()
+        };
+        if let Some(x) = args.refine_threshold {
+            if !(x.is_finite() && x > 0.0) {
+                bail!("--refine-threshold must be a positive number, got {x}");
+            }
+            refine.threshold = x;
+        }
+        if let Some(d) = args.max_depth {
+            refine.max_depth = d;
+        }
+        solve_scene_adaptive(scene, settings, &refine, &bars)?
+    } else {
+        solve_scene(scene, settings, &bars)?
+    };
     if !quiet {
         let st = &solved.solution.stats;
         let what = if st.solver == SolverKind::Progressive {
@@ -105,7 +124,7 @@ fn run_solve(scene: &Scene, settings: &SolveSettings, quiet: bool) -> Result<Sol
 fn solve(args: SolveCmdArgs) -> Result<()> {
     let (scene, file_settings) = load_scene(args.scene.as_deref())?;
     let settings = solve_settings(&args.solve, &file_settings)?;
-    let solved = run_solve(&scene, &settings, args.solve.quiet)?;
+    let solved = run_solve(&scene, &settings, &args.solve)?;
     let report = Report::new(&scene.name, &solved.mesh, &solved.solution, solved.form_factor.name());
     if !args.solve.quiet {
         let t = &report.totals;
@@ -192,7 +211,7 @@ fn render(args: RenderArgs) -> Result<()> {
             let (scene, _) = load_scene(args.scene.as_deref())?;
             let settings = solve_settings(&args.solve, &file_settings)?;
             let camera = camera_from(&args, scene_camera, Some(&scene))?;
-            let solved = run_solve(&scene, &settings, args.solve.quiet)?;
+            let solved = run_solve(&scene, &settings, &args.solve)?;
             let radiosity = solved.solution.display_radiosity(&solved.mesh, args.ambient);
             let shaded = Shaded {
                 vertices: &solved.mesh.vertices,

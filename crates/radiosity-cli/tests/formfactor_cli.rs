@@ -45,11 +45,23 @@ fn lines(o: &Output) -> Vec<Value> {
 fn prints_one_json_line_per_method_matching_howell() {
     let dir = tempfile::tempdir().unwrap();
     let file = write(dir.path(), "c11.json", C11);
-    let out = lines(&run(&["formfactor", file.to_str().unwrap(), "--method", "all"]));
+    let out = lines(&run(&[
+        "formfactor",
+        file.to_str().unwrap(),
+        "--method",
+        "all",
+    ]));
     let names: Vec<&str> = out.iter().map(|l| l["method"].as_str().unwrap()).collect();
     assert_eq!(
         names,
-        ["analytic-point", "analytic-polygon", "point-sampled", "hemicube", "raycast", "monte-carlo"]
+        [
+            "analytic-point",
+            "analytic-polygon",
+            "point-sampled",
+            "hemicube",
+            "raycast",
+            "monte-carlo"
+        ]
     );
     for l in &out {
         let method = l["method"].as_str().unwrap();
@@ -61,7 +73,11 @@ fn prints_one_json_line_per_method_matching_howell() {
         }
         assert!(l["seconds"].as_f64().unwrap() >= 0.0);
         // A standard error exactly where the method is a random estimate.
-        assert_eq!(l.get("stderr").is_some(), method == "monte-carlo", "{method}: {l}");
+        assert_eq!(
+            l.get("stderr").is_some(),
+            method == "monte-carlo",
+            "{method}: {l}"
+        );
     }
     // The default method is the default engine's, raycast; one line.
     let out = lines(&run(&["formfactor", file.to_str().unwrap()]));
@@ -78,7 +94,12 @@ fn a_point_source_has_no_reverse_form_factor() {
         "b3.json",
         r#"{"from": {"point": [0,0,0], "normal": [0,0,1]}, "to": [[0,1,1],[1,1,1],[1,0,1],[0,0,1]]}"#,
     );
-    let out = lines(&run(&["formfactor", file.to_str().unwrap(), "--method", "analytic-point"]));
+    let out = lines(&run(&[
+        "formfactor",
+        file.to_str().unwrap(),
+        "--method",
+        "analytic-point",
+    ]));
     assert!((out[0]["F_from_to"].as_f64().unwrap() - 0.138_531_605_994_892_98).abs() < 1e-12);
     assert!(out[0]["F_to_from"].is_null());
 }
@@ -93,23 +114,57 @@ fn occluders_and_method_parameters_are_used() {
         r#"{"from": [[0,0,0],[1,0,0],[1,1,0],[0,1,0]], "to": [[0,1,1],[1,1,1],[1,0,1],[0,0,1]],
             "occluders": [[[-2,-2,0.5],[3,-2,0.5],[3,3,0.5],[-2,3,0.5]]]}"#,
     );
-    let out = lines(&run(&["formfactor", blocked.to_str().unwrap(), "--method", "monte-carlo"]));
+    let out = lines(&run(&[
+        "formfactor",
+        blocked.to_str().unwrap(),
+        "--method",
+        "monte-carlo",
+    ]));
     assert_eq!(out[0]["F_from_to"], 0.0);
     // Fewer rays: a larger standard error, about 0.4/√N; the seed makes it reproducible.
     let file = write(dir.path(), "c11.json", C11);
-    let args = ["formfactor", file.to_str().unwrap(), "--method", "monte-carlo", "--samples", "10000", "--seed", "3"];
+    let args = [
+        "formfactor",
+        file.to_str().unwrap(),
+        "--method",
+        "monte-carlo",
+        "--samples",
+        "10000",
+        "--seed",
+        "3",
+    ];
     let a = lines(&run(&args));
     let se = a[0]["stderr"].as_f64().unwrap();
-    assert!((se - (C11_F * (1.0 - C11_F) / 9999.0).sqrt()).abs() < 4e-4, "stderr {se}");
+    assert!(
+        (se - (C11_F * (1.0 - C11_F) / 9999.0).sqrt()).abs() < 4e-4,
+        "stderr {se}"
+    );
     let b = lines(&run(&args));
     for key in ["F_from_to", "F_to_from", "stderr"] {
         assert_eq!(a[0][key], b[0][key], "same seed, same {key}");
     }
     // A coarse hemi-cube is coarser.
-    let coarse = lines(&run(&["formfactor", file.to_str().unwrap(), "--method", "hemicube", "--resolution", "8"]));
-    let fine = lines(&run(&["formfactor", file.to_str().unwrap(), "--method", "hemicube"]));
+    let coarse = lines(&run(&[
+        "formfactor",
+        file.to_str().unwrap(),
+        "--method",
+        "hemicube",
+        "--resolution",
+        "8",
+    ]));
+    let fine = lines(&run(&[
+        "formfactor",
+        file.to_str().unwrap(),
+        "--method",
+        "hemicube",
+    ]));
     let err = |l: &Vec<Value>| (l[0]["F_from_to"].as_f64().unwrap() - C11_F).abs();
-    assert!(err(&coarse) > err(&fine), "resolution 8: {} vs default: {}", err(&coarse), err(&fine));
+    assert!(
+        err(&coarse) > err(&fine),
+        "resolution 8: {} vs default: {}",
+        err(&coarse),
+        err(&fine)
+    );
 }
 
 #[test]
@@ -117,8 +172,14 @@ fn table_lists_each_method_with_its_errors() {
     let o = run(&["formfactor", "--table", "--method", "analytic-polygon"]);
     assert!(o.status.success(), "{}", stderr(&o));
     let text = stdout(&o);
-    assert!(text.starts_with("| method | max abs error | mean abs error |"), "{text}");
-    let row = text.lines().find(|l| l.starts_with("| analytic-polygon |")).expect("a row");
+    assert!(
+        text.starts_with("| method | max abs error | mean abs error |"),
+        "{text}"
+    );
+    let row = text
+        .lines()
+        .find(|l| l.starts_with("| analytic-polygon |"))
+        .expect("a row");
     let max: f64 = row.split('|').nth(2).unwrap().trim().parse().unwrap();
     assert!(max < 1e-6, "{row}");
 }
@@ -137,9 +198,21 @@ fn assert_fails_cleanly(o: &Output, needles: &[&str]) {
 fn bad_input_fails_cleanly_naming_the_file_and_the_problem() {
     let dir = tempfile::tempdir().unwrap();
     let cases = [
-        ("syntax.json", r#"{"from": [[0,0,0],"#, vec!["not valid JSON"]),
-        ("nan.json", r#"{"from": [[0,0,0],[1,0,0],[1,1,NaN]], "to": [[0,0,1],[0,1,1],[1,1,1]]}"#, vec!["not valid JSON"]),
-        ("huge.json", r#"{"from": [[0,0,0],[1,0,0],[1,1,1e999]], "to": [[0,0,1],[0,1,1],[1,1,1]]}"#, vec!["not valid JSON"]),
+        (
+            "syntax.json",
+            r#"{"from": [[0,0,0],"#,
+            vec!["not valid JSON"],
+        ),
+        (
+            "nan.json",
+            r#"{"from": [[0,0,0],[1,0,0],[1,1,NaN]], "to": [[0,0,1],[0,1,1],[1,1,1]]}"#,
+            vec!["not valid JSON"],
+        ),
+        (
+            "huge.json",
+            r#"{"from": [[0,0,0],[1,0,0],[1,1,1e999]], "to": [[0,0,1],[0,1,1],[1,1,1]]}"#,
+            vec!["not valid JSON"],
+        ),
         (
             "degenerate.json",
             r#"{"from": [[0,0,0],[1,0,0],[2,0,0]], "to": [[0,0,1],[0,1,1],[1,1,1]]}"#,
@@ -150,8 +223,16 @@ fn bad_input_fails_cleanly_naming_the_file_and_the_problem() {
             r#"{"from": [[0,0,0],[2,0,0],[2,2,0],[1,0.5,0],[0,2,0]], "to": [[0,0,1],[0,1,1],[1,1,1]]}"#,
             vec!["from", "not convex"],
         ),
-        ("vertex.json", r#"{"from": [[0,0,0],[1,0,0],[1,1,0]], "to": [[0,0,1],[0,1],[1,1,1]]}"#, vec!["to: vertex 1"]),
-        ("missing.json", r#"{"from": [[0,0,0],[1,0,0],[1,1,0]]}"#, vec!["missing \"to\""]),
+        (
+            "vertex.json",
+            r#"{"from": [[0,0,0],[1,0,0],[1,1,0]], "to": [[0,0,1],[0,1],[1,1,1]]}"#,
+            vec!["to: vertex 1"],
+        ),
+        (
+            "missing.json",
+            r#"{"from": [[0,0,0],[1,0,0],[1,1,0]]}"#,
+            vec!["missing \"to\""],
+        ),
         (
             "normal.json",
             r#"{"from": {"point": [0,0,0], "normal": [0,0,0]}, "to": [[0,0,1],[0,1,1],[1,1,1]]}"#,
@@ -168,9 +249,20 @@ fn bad_input_fails_cleanly_naming_the_file_and_the_problem() {
     }
     let file = write(dir.path(), "c11.json", C11);
     assert_fails_cleanly(
-        &run(&["formfactor", file.to_str().unwrap(), "--method", "radiosity"]),
+        &run(&[
+            "formfactor",
+            file.to_str().unwrap(),
+            "--method",
+            "radiosity",
+        ]),
         &["unknown form-factor method 'radiosity'", "analytic-polygon"],
     );
-    assert_fails_cleanly(&run(&["formfactor", "no/such/file.json"]), &["reading no/such/file.json"]);
-    assert_fails_cleanly(&run(&["formfactor", file.to_str().unwrap(), "--samples", "0"]), &["--samples"]);
+    assert_fails_cleanly(
+        &run(&["formfactor", "no/such/file.json"]),
+        &["reading no/such/file.json"],
+    );
+    assert_fails_cleanly(
+        &run(&["formfactor", file.to_str().unwrap(), "--samples", "0"]),
+        &["--samples"],
+    );
 }

@@ -23,7 +23,10 @@ fn bench_pair(c: &mut Criterion) {
     let cases = reference_cases();
     let settings = PairSettings::default();
     for name in ["C-11 a=1 b=1 c=1", "C-14 h=1 l=1 w=1"] {
-        let case = cases.iter().find(|c| c.name == name).expect("reference case");
+        let case = cases
+            .iter()
+            .find(|c| c.name == name)
+            .expect("reference case");
         let mut group = c.benchmark_group(format!("pair {name}"));
         group.throughput(Throughput::Elements(1));
         for &method in FormFactorMethod::ALL {
@@ -39,13 +42,17 @@ fn bench_pair(c: &mut Criterion) {
 /// default Cornell mesh, at resolutions 64, 128 and 256; throughput in form factors.
 fn bench_hemicube(c: &mut Criterion) {
     let mesh = Mesh::build(&cornell_box(), &MeshOptions::default()).expect("Cornell mesh");
-    let elements: Vec<usize> = (0..mesh.elements.len()).step_by(mesh.elements.len() / 32).collect();
+    let elements: Vec<usize> = (0..mesh.elements.len())
+        .step_by(mesh.elements.len() / 32)
+        .collect();
     let mut group = c.benchmark_group(format!(
         "hemicube rows, Cornell {} elements x {} patches",
         mesh.elements.len(),
         mesh.patches.len()
     ));
-    group.throughput(Throughput::Elements((elements.len() * mesh.patches.len()) as u64));
+    group.throughput(Throughput::Elements(
+        (elements.len() * mesh.patches.len()) as u64,
+    ));
     for resolution in [64, 128, 256] {
         let engine = Hemicube::new(
             &mesh,

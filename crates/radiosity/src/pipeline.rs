@@ -65,9 +65,9 @@ pub fn solve_scene_adaptive(
     progress: &dyn Progress,
 ) -> Result<Solved, PipelineError> {
     let mut coarse = settings.mesh;
-    coarse.elements = (coarse.elements / 4).max(1);
-    coarse.max_element_size = coarse.max_element_size.map(|h| 2.0 * h);
-    coarse.patch_subdivision = (coarse.patch_subdivision / 2).max(1);
+    coarse.elements = (coarse.elements / 2).max(1);
+    coarse.max_element_size = coarse.max_element_size.map(|h| std::f64::consts::SQRT_2 * h);
+    coarse.patch_subdivision = ((coarse.patch_subdivision as f64 / std::f64::consts::SQRT_2).round() as u32).max(1);
     let mut mesh = Mesh::build(scene, &coarse)?;
     loop {
         let solution = {

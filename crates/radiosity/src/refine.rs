@@ -263,7 +263,15 @@ mod tests {
     fn marks_where_radiosity_jumps() {
         let mesh = plane();
         // A step in radiosity across x = 0.5 on the quad.
-        let b: Vec<[f64; 3]> = mesh.elements.iter().map(|e| if e.centre.x < 0.5 { [1.0; 3] } else { [0.1; 3] }).collect();
+        let b: Vec<[f64; 3]> = mesh
+            .elements
+            .iter()
+            .map(|e| match (e.surface, e.centre.x < 0.5) {
+                (0, true) => [1.0; 3],
+                (0, false) => [0.1; 3],
+                _ => [0.5; 3],
+            })
+            .collect();
         let marked = mark(&mesh, &b, &RefineOptions::default());
         for (e, m) in mesh.elements.iter().zip(&marked) {
             let near_step = e.surface == 0 && (e.centre.x - 0.5).abs() < 0.25;

@@ -140,6 +140,8 @@ pub enum SequenceError {
     TooManyFrames(usize),
     #[error("overshoot factor must be in (0, 2), got {0}")]
     BadOvershoot(f64),
+    #[error("tolerance must be positive and finite, got {0}")]
+    BadTolerance(f64),
     #[error(transparent)]
     Pipeline(#[from] PipelineError),
     #[error("writing {path}: {message}")]
@@ -210,6 +212,10 @@ pub fn run(
     if !(omega > 0.0 && omega < 2.0) {
         return Err(SequenceError::BadOvershoot(omega));
     }
+    let tolerance = settings.solve.tolerance;
+    if !(tolerance.is_finite() && tolerance > 0.0) {
+        return Err(SequenceError::BadTolerance(tolerance));
+    }
     let mesh_options = match options.adaptive {
         Some(_) => coarse_mesh_options(&settings.mesh),
         None => settings.mesh,
@@ -224,7 +230,6 @@ pub fn run(
         max_elements: r.max_elements.or(Some(4 * mesh.len())),
         ..r
     });
-    let tolerance = settings.solve.tolerance;
     let last = options.frames[options.frames.len() - 1];
     let mut rendering = 0.0;
     let mut frames = Vec::with_capacity(options.frames.len());

@@ -6,7 +6,9 @@
 
 use glam::DVec3;
 use radiosity::cornell::cornell_box;
-use radiosity::formfactor::pair::{solve_pair, Estimate, PairProblem, PairResult, PairSettings, Source};
+use radiosity::formfactor::pair::{
+    solve_pair, Estimate, PairProblem, PairResult, PairSettings, Source,
+};
 use radiosity::formfactor::table::reference_cases;
 use radiosity::formfactor::{FormFactorMethod, Visibility};
 use radiosity::geometry::Polygon;
@@ -90,22 +92,33 @@ fn every_method_matches_every_reference_case() {
             match (case.f21, r.to_from) {
                 (Some(want), Some(got)) => checks.push(("F21", got, want)),
                 (None, None) => {}
-                _ => failures.push(format!("{method} {}: F21 defined on one side only", case.name)),
+                _ => failures.push(format!(
+                    "{method} {}: F21 defined on one side only",
+                    case.name
+                )),
             }
             for (what, got, want) in checks {
+                // NaN counts as the largest error.
                 let err = (got.value - want).abs();
-                if !(err <= worst.0) {
+                let err = if err.is_nan() { f64::INFINITY } else { err };
+                if err > worst.0 {
                     worst = (err, format!("{} {what}", case.name));
                 }
-                if !(err <= tol) {
-                    failures.push(format!("{method} {} {what}: {} vs {want} (error {err:.2e} > {tol:.0e})", case.name, got.value));
+                if err > tol {
+                    failures.push(format!(
+                        "{method} {} {what}: {} vs {want} (error {err:.2e} > {tol:.0e})",
+                        case.name, got.value
+                    ));
                 }
                 if method == MonteCarlo {
                     let se = got.stderr.expect("monte-carlo reports a standard error");
                     // 4 stderr: with 32 estimates, a correct estimator exceeds it with
                     // probability ~2e-3; and the stderr itself must be as small as promised.
                     if !(err <= 4.0 * se && se <= 5e-4) {
-                        failures.push(format!("{method} {} {what}: error {err:.2e}, stderr {se:.2e}", case.name));
+                        failures.push(format!(
+                            "{method} {} {what}: error {err:.2e}, stderr {se:.2e}",
+                            case.name
+                        ));
                     }
                 } else {
                     assert!(got.stderr.is_none(), "{method} is deterministic");
@@ -149,7 +162,12 @@ fn configurations() -> Vec<(Vec<DVec3>, Vec<DVec3>)> {
         let n = v(-0.4, 0.2, -1.0).normalize();
         let (a, b) = n.any_orthonormal_pair();
         let c = v(0.9, 0.4, 1.3);
-        vec![c - 0.4 * a - 0.25 * b, c - 0.4 * a + 0.25 * b, c + 0.4 * a + 0.25 * b, c + 0.4 * a - 0.25 * b]
+        vec![
+            c - 0.4 * a - 0.25 * b,
+            c - 0.4 * a + 0.25 * b,
+            c + 0.4 * a + 0.25 * b,
+            c + 0.4 * a - 0.25 * b,
+        ]
     };
     let tilted = if Polygon::new(tilted.clone()).unwrap().normal().z < 0.0 {
         tilted
@@ -157,15 +175,34 @@ fn configurations() -> Vec<(Vec<DVec3>, Vec<DVec3>)> {
         tilted.into_iter().rev().collect()
     };
     vec![
-        (rect_z(0.0, 1.0, 0.0, 1.0, 0.0, true), rect_z(0.5, 2.0, 0.3, 1.1, 0.7, false)),
+        (
+            rect_z(0.0, 1.0, 0.0, 1.0, 0.0, true),
+            rect_z(0.5, 2.0, 0.3, 1.1, 0.7, false),
+        ),
         // A wall beside the floor, facing it (−x).
-        (rect_z(0.0, 2.0, 0.0, 1.0, 0.0, true), vec![v(2.5, 0.0, 1.5), v(2.5, 1.0, 1.5), v(2.5, 1.0, 0.2), v(2.5, 0.0, 0.2)]),
+        (
+            rect_z(0.0, 2.0, 0.0, 1.0, 0.0, true),
+            vec![
+                v(2.5, 0.0, 1.5),
+                v(2.5, 1.0, 1.5),
+                v(2.5, 1.0, 0.2),
+                v(2.5, 0.0, 0.2),
+            ],
+        ),
         (rect_z(0.0, 1.0, 0.0, 1.0, 0.0, true), tilted),
-        (vec![v(0.0, 0.0, 0.0), v(1.0, 0.2, 0.0), v(0.3, 0.9, 0.0)], rect_z(-0.5, 0.5, 0.0, 1.5, 0.6, false)),
+        (
+            vec![v(0.0, 0.0, 0.0), v(1.0, 0.2, 0.0), v(0.3, 0.9, 0.0)],
+            rect_z(-0.5, 0.5, 0.0, 1.5, 0.6, false),
+        ),
         // Howell C-14 with w = 1.5: the floor and a wall sharing the edge x = 0.
         (
             rect_z(0.0, 1.5, 0.0, 1.0, 0.0, true),
-            vec![v(0.0, 0.0, 0.0), v(0.0, 1.0, 0.0), v(0.0, 1.0, 0.8), v(0.0, 0.0, 0.8)],
+            vec![
+                v(0.0, 0.0, 0.0),
+                v(0.0, 1.0, 0.0),
+                v(0.0, 1.0, 0.8),
+                v(0.0, 0.0, 0.8),
+            ],
         ),
     ]
 }
@@ -173,7 +210,13 @@ fn configurations() -> Vec<(Vec<DVec3>, Vec<DVec3>)> {
 /// Statistical or discretisation slack for comparing two estimates `a` and `b` of one
 /// quantity with one method: exact methods agree to `exact`, Monte Carlo within 4 combined
 /// standard errors, the others within their reference tolerance (scaled by `scale`).
-fn agree(method: FormFactorMethod, a: (f64, Option<f64>), b: (f64, Option<f64>), scale: f64, exact: f64) -> bool {
+fn agree(
+    method: FormFactorMethod,
+    a: (f64, Option<f64>),
+    b: (f64, Option<f64>),
+    scale: f64,
+    exact: f64,
+) -> bool {
     let diff = (a.0 - b.0).abs();
     match method {
         AnalyticPoint | AnalyticPolygon => diff <= exact * scale,
@@ -194,7 +237,10 @@ fn reciprocity_holds_for_every_method() {
             let (aa, ab) = (area(&a), area(&b));
             let r: PairResult = solve_pair(&problem(a, b, vec![]), method, &settings);
             let (ij, ji) = (weighted(r.from_to, aa), weighted(r.to_from.unwrap(), ab));
-            assert!(ij.0 > 1e-3, "{method} configuration {i}: the pair should see each other");
+            assert!(
+                ij.0 > 1e-3,
+                "{method} configuration {i}: the pair should see each other"
+            );
             // Exact methods: the analytic-point cubature is converged to 1e-9 per direction,
             // the contour integral to ~1e-14; A_i F_ij = A_j F_ji then holds to 1e-8 · area.
             let scale = aa.max(ab);
@@ -225,7 +271,12 @@ fn additivity_holds_for_every_method() {
             let whole = solve_pair(&problem(a.clone(), b, vec![]), method, &settings).from_to;
             let p1 = solve_pair(&problem(a.clone(), first, vec![]), method, &settings).from_to;
             let p2 = solve_pair(&problem(a, second, vec![]), method, &settings).from_to;
-            let sum = (p1.value + p2.value, p1.stderr.zip(p2.stderr).map(|(x, y)| (x * x + y * y).sqrt()));
+            let sum = (
+                p1.value + p2.value,
+                p1.stderr
+                    .zip(p2.stderr)
+                    .map(|(x, y)| (x * x + y * y).sqrt()),
+            );
             // Exact methods to 3e-9 (three cubatures converged to 1e-9 each). The hemi-cube is
             // additive to rounding: its rasteriser is watertight, so the two halves win
             // exactly the pixels the whole wins.
@@ -233,7 +284,11 @@ fn additivity_holds_for_every_method() {
                 Hemicube => (whole.value - sum.0).abs() <= 1e-9,
                 _ => agree(method, (whole.value, whole.stderr), sum, 1.0, 3e-9),
             };
-            assert!(ok, "{method} configuration {i}: F to the whole {} vs the sum of parts {}", whole.value, sum.0);
+            assert!(
+                ok,
+                "{method} configuration {i}: F to the whole {} vs the sum of parts {}",
+                whole.value, sum.0
+            );
         }
     }
 }
@@ -249,9 +304,20 @@ fn a_blocker_covering_the_whole_view_gives_zero() {
     let blocker = rect_z(-2.0, 3.0, -2.0, 3.0, 0.5, true);
     for &method in FormFactorMethod::ALL {
         let settings = property_settings(method);
-        let r = solve_pair(&problem(from.clone(), to.clone(), vec![blocker.clone()]), method, &settings);
-        assert_eq!(r.from_to.value, 0.0, "{method}: F_from_to behind a full blocker");
-        assert_eq!(r.to_from.unwrap().value, 0.0, "{method}: F_to_from behind a full blocker");
+        let r = solve_pair(
+            &problem(from.clone(), to.clone(), vec![blocker.clone()]),
+            method,
+            &settings,
+        );
+        assert_eq!(
+            r.from_to.value, 0.0,
+            "{method}: F_from_to behind a full blocker"
+        );
+        assert_eq!(
+            r.to_from.unwrap().value,
+            0.0,
+            "{method}: F_to_from behind a full blocker"
+        );
         // The same from a differential area.
         let point = PairProblem::new(
             Source::Point {
@@ -263,7 +329,10 @@ fn a_blocker_covering_the_whole_view_gives_zero() {
         )
         .unwrap();
         let r = solve_pair(&point, method, &settings);
-        assert_eq!(r.from_to.value, 0.0, "{method}: point behind a full blocker");
+        assert_eq!(
+            r.from_to.value, 0.0,
+            "{method}: point behind a full blocker"
+        );
         assert!(r.to_from.is_none());
     }
 }
@@ -283,7 +352,15 @@ fn a_blocker_hiding_half_the_receiver_halves_the_form_factor() {
     let beside = rect_z(1.5, 2.5, 0.0, 1.0, 0.5, true);
     for &method in FormFactorMethod::ALL {
         let settings = property_settings(method);
-        let r = solve_pair(&problem(from.clone(), to.clone(), vec![plate.clone(), beside.clone()]), method, &settings);
+        let r = solve_pair(
+            &problem(
+                from.clone(),
+                to.clone(),
+                vec![plate.clone(), beside.clone()],
+            ),
+            method,
+            &settings,
+        );
         let want = 0.5 * C11_UNIT;
         for (what, got) in [("F_from_to", r.from_to), ("F_to_from", r.to_from.unwrap())] {
             let err = (got.value - want).abs();
@@ -291,12 +368,30 @@ fn a_blocker_hiding_half_the_receiver_halves_the_form_factor() {
                 MonteCarlo => err <= 4.0 * got.stderr.unwrap(),
                 _ => err <= tolerance(method),
             };
-            assert!(ok, "{method} {what}: {} vs {want} (error {err:.2e})", got.value);
+            assert!(
+                ok,
+                "{method} {what}: {} vs {want} (error {err:.2e})",
+                got.value
+            );
         }
-        let open = solve_pair(&problem(from.clone(), to.clone(), vec![beside.clone()]), method, &settings);
-        let full = solve_pair(&problem(from.clone(), to.clone(), vec![]), method, &settings);
+        let open = solve_pair(
+            &problem(from.clone(), to.clone(), vec![beside.clone()]),
+            method,
+            &settings,
+        );
+        let full = solve_pair(
+            &problem(from.clone(), to.clone(), vec![]),
+            method,
+            &settings,
+        );
         assert!(
-            agree(method, (open.from_to.value, open.from_to.stderr), (full.from_to.value, full.from_to.stderr), 1.0, 1e-12),
+            agree(
+                method,
+                (open.from_to.value, open.from_to.stderr),
+                (full.from_to.value, full.from_to.stderr),
+                1.0,
+                1e-12
+            ),
             "{method}: an occluder out of view changed F from {} to {}",
             full.from_to.value,
             open.from_to.value
@@ -378,7 +473,10 @@ fn rows_sum_to_one_inside_a_closed_subdivided_cube() {
             PointSampled => 0.08,
         };
         eprintln!("{method:>16}: worst |Σ_p F_ep − 1| = {worst:.2e}");
-        assert!(worst <= tol, "{method}: a row sums to 1 ± {worst:.2e} (tolerance {tol:.0e})");
+        assert!(
+            worst <= tol,
+            "{method}: a row sums to 1 ± {worst:.2e} (tolerance {tol:.0e})"
+        );
     }
 }
 
@@ -425,7 +523,10 @@ fn mesh_engines_agree_with_the_exact_element_to_patch_factor() {
             MonteCarlo => 8e-2,
         };
         eprintln!("{method:>16}: relative L1 error of the coupling {rel:.2e}");
-        assert!(rel <= tol, "{method}: relative L1 error {rel:.2e} (tolerance {tol:.0e})");
+        assert!(
+            rel <= tol,
+            "{method}: relative L1 error {rel:.2e} (tolerance {tol:.0e})"
+        );
     }
 }
 
@@ -469,7 +570,9 @@ fn cornell_tolerances(method: FormFactorMethod) -> (f64, f64) {
 #[test]
 fn cornell_box_with_every_method_matches_mitsuba() {
     let reference = cornell_reference();
-    let polygons = reference["per_polygon_area_averaged"]["polygons"].as_array().unwrap();
+    let polygons = reference["per_polygon_area_averaged"]["polygons"]
+        .as_array()
+        .unwrap();
     let mut failures = Vec::new();
     let mut solutions: Vec<(FormFactorMethod, Vec<[f64; 3]>)> = Vec::new();
     for &method in FormFactorMethod::ALL {
@@ -491,7 +594,10 @@ fn cornell_box_with_every_method_matches_mitsuba() {
         let mut ours = Vec::new();
         for poly in polygons {
             let name = poly["name"].as_str().unwrap();
-            let b = report.object(name).unwrap_or_else(|| panic!("no object {name}")).radiosity;
+            let b = report
+                .object(name)
+                .unwrap_or_else(|| panic!("no object {name}"))
+                .radiosity;
             for c in 0..3 {
                 let want = poly["radiosity_avg"][c].as_f64().unwrap();
                 // Plus 3 Monte Carlo standard errors of the reference itself.
@@ -501,7 +607,11 @@ fn cornell_box_with_every_method_matches_mitsuba() {
                     worst = (err / want, format!("{name}[{c}]"));
                 }
                 if err > tol * want + 3.0 * se {
-                    failures.push(format!("{method}: {name}[{c}] ours {} vs Mitsuba {want} ({:.2} %)", b[c], 100.0 * err / want));
+                    failures.push(format!(
+                        "{method}: {name}[{c}] ours {} vs Mitsuba {want} ({:.2} %)",
+                        b[c],
+                        100.0 * err / want
+                    ));
                 }
             }
             ours.push(b);
@@ -514,7 +624,11 @@ fn cornell_box_with_every_method_matches_mitsuba() {
         );
         solutions.push((method, ours));
     }
-    let exact = &solutions.iter().find(|(m, _)| *m == AnalyticPolygon).unwrap().1;
+    let exact = &solutions
+        .iter()
+        .find(|(m, _)| *m == AnalyticPolygon)
+        .unwrap()
+        .1;
     for (method, ours) in &solutions {
         let tol = cornell_tolerances(*method).1;
         let mut worst = (0.0f64, String::new());
@@ -526,11 +640,20 @@ fn cornell_box_with_every_method_matches_mitsuba() {
                     worst = (rel, format!("{name}[{c}]"));
                 }
                 if rel > tol {
-                    failures.push(format!("{method}: {name}[{c}] ours {} vs analytic-polygon {} ({:.2} %)", b[c], e[c], 100.0 * rel));
+                    failures.push(format!(
+                        "{method}: {name}[{c}] ours {} vs analytic-polygon {} ({:.2} %)",
+                        b[c],
+                        e[c],
+                        100.0 * rel
+                    ));
                 }
             }
         }
-        eprintln!("{method:>16}: worst difference from analytic-polygon {:.2} % ({})", 100.0 * worst.0, worst.1);
+        eprintln!(
+            "{method:>16}: worst difference from analytic-polygon {:.2} % ({})",
+            100.0 * worst.0,
+            worst.1
+        );
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }

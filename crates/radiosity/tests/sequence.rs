@@ -268,6 +268,9 @@ fn bad_sequences_fail_with_a_clear_error() {
     let e = err(&s, options(vec![0, 1]));
     assert!(matches!(e, SequenceError::BadOvershoot(_)));
     assert!(e.to_string().contains("2.5"));
+    s.solve.overshoot = 1.0;
+    s.solve.tolerance = f64::NAN;
+    assert!(matches!(err(&s, options(vec![0, 1])), SequenceError::BadTolerance(_)));
 }
 
 #[test]

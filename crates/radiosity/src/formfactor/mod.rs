@@ -75,15 +75,30 @@ impl FormFactorMethod {
     }
 
     /// Builds the method's engine over a mesh, with the method's default parameters.
-    pub fn engine<'a>(self, mesh: &'a Mesh, visibility: &'a Visibility) -> Box<dyn FormFactors + 'a> {
+    pub fn engine<'a>(
+        self,
+        mesh: &'a Mesh,
+        visibility: &'a Visibility,
+    ) -> Box<dyn FormFactors + 'a> {
         match self {
-            FormFactorMethod::AnalyticPoint => Box::new(analytic::AnalyticPoint::new(mesh, visibility)),
-            FormFactorMethod::AnalyticPolygon => Box::new(analytic::AnalyticPolygon::new(mesh, visibility)),
-            FormFactorMethod::PointSampled => Box::new(point_sampled::PointSampled::new(mesh, visibility)),
+            FormFactorMethod::AnalyticPoint => {
+                Box::new(analytic::AnalyticPoint::new(mesh, visibility))
+            }
+            FormFactorMethod::AnalyticPolygon => {
+                Box::new(analytic::AnalyticPolygon::new(mesh, visibility))
+            }
+            FormFactorMethod::PointSampled => {
+                Box::new(point_sampled::PointSampled::new(mesh, visibility))
+            }
             // The hemi-cube's z-buffer is its own visibility.
-            FormFactorMethod::Hemicube => Box::new(hemicube::Hemicube::new(mesh, hemicube::HemicubeParams::default())),
+            FormFactorMethod::Hemicube => Box::new(hemicube::Hemicube::new(
+                mesh,
+                hemicube::HemicubeParams::default(),
+            )),
             FormFactorMethod::Raycast => Box::new(raycast::Raycast::new(mesh, visibility)),
-            FormFactorMethod::MonteCarlo => Box::new(monte_carlo::MonteCarlo::new(mesh, visibility)),
+            FormFactorMethod::MonteCarlo => {
+                Box::new(monte_carlo::MonteCarlo::new(mesh, visibility))
+            }
         }
     }
 }
@@ -103,7 +118,10 @@ impl FromStr for FormFactorMethod {
             .find(|m| m.name() == s)
             .ok_or_else(|| {
                 let names: Vec<_> = Self::ALL.iter().map(|m| m.name()).collect();
-                format!("unknown form-factor method '{s}' (expected one of: {})", names.join(", "))
+                format!(
+                    "unknown form-factor method '{s}' (expected one of: {})",
+                    names.join(", ")
+                )
             })
     }
 }
@@ -166,7 +184,12 @@ impl NearField {
             .iter()
             .map(|p| {
                 let c = p.polygon.centroid();
-                let r = p.polygon.vertices().iter().map(|v| v.distance(c)).fold(0.0, f64::max);
+                let r = p
+                    .polygon
+                    .vertices()
+                    .iter()
+                    .map(|v| v.distance(c))
+                    .fold(0.0, f64::max);
                 (c, r, p.polygon.diameter())
             })
             .collect();
@@ -217,7 +240,9 @@ impl NearField {
     }
 
     pub fn is_near(&self, element: usize, patch: usize) -> bool {
-        self.per_element[element].binary_search(&(patch as u32)).is_ok()
+        self.per_element[element]
+            .binary_search(&(patch as u32))
+            .is_ok()
     }
 }
 
@@ -246,7 +271,12 @@ impl CouplingMatrix {
     }
 
     /// Computes every row in parallel with a given near field.
-    pub fn compute_with(ff: &dyn FormFactors, mesh: &Mesh, near_field: &NearField, progress: &dyn Progress) -> Self {
+    pub fn compute_with(
+        ff: &dyn FormFactors,
+        mesh: &Mesh,
+        near_field: &NearField,
+        progress: &dyn Progress,
+    ) -> Self {
         let (n, m) = (mesh.elements.len(), mesh.patches.len());
         let mut data = vec![0.0f32; n * m];
         progress.start("form factors", n as u64);
@@ -333,7 +363,10 @@ impl Visibility {
     /// Builds the BVH over arbitrary opaque convex polygons (fan-triangulated), e.g. the
     /// occluders of a [`pair::PairProblem`]; ray ends are lifted by 1e-5 × `diameter`, the
     /// size of the whole configuration in metres.
-    pub fn from_polygons<'p>(polygons: impl IntoIterator<Item = &'p [DVec3]>, diameter: f64) -> Self {
+    pub fn from_polygons<'p>(
+        polygons: impl IntoIterator<Item = &'p [DVec3]>,
+        diameter: f64,
+    ) -> Self {
         let mut tris = Vec::new();
         let mut triangle_polygon = Vec::new();
         for (i, p) in polygons.into_iter().enumerate() {
@@ -496,7 +529,13 @@ pub fn sub_areas(vertices: &[DVec3], k: usize) -> Vec<Vec<DVec3>> {
 /// Sutherland–Hodgman clip of a 2-D convex loop to `p[axis] ≥ bound` (`above`) or
 /// `p[axis] ≤ bound`.
 fn clip_flat(poly: &[[f64; 2]], axis: usize, bound: f64, above: bool) -> Vec<[f64; 2]> {
-    let side = |p: &[f64; 2]| if above { p[axis] - bound } else { bound - p[axis] };
+    let side = |p: &[f64; 2]| {
+        if above {
+            p[axis] - bound
+        } else {
+            bound - p[axis]
+        }
+    };
     let n = poly.len();
     let mut out = Vec::with_capacity(n + 2);
     for i in 0..n {
@@ -511,4 +550,82 @@ fn clip_flat(poly: &[[f64; 2]], axis: usize, bound: f64, above: bool) -> Vec<[f6
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::newell;
+
+    fn assert_tiles(poly: &[DVec3], pieces: &[Vec<DVec3>], what: &str) {
+        let (normal, area) = newell(poly);
+        let sum: f64 = pieces.iter().map(|p| newell(p).1).sum();
+        assert!(
+            (sum - area).abs() < 1e-12 * area,
+            "{what}: pieces cover {sum}, polygon {area}"
+        );
+        for p in pieces {
+            // Same orientation, inside the polygon.
+            assert!(
+                newell(p).0.dot(normal) > 0.999_999,
+                "{what}: a piece is turned over"
+            );
+            for v in p {
+                let n = poly.len();
+                let inside = (0..n).all(|i| {
+                    (poly[(i + 1) % n] - poly[i])
+                        .cross(*v - poly[i])
+                        .dot(normal)
+                        >= -1e-12
+                });
+                assert!(inside, "{what}: piece vertex {v} outside");
+            }
+        }
+    }
+
+    #[test]
+    fn sub_areas_tile_polygons_with_pieces_of_similar_size() {
+        // A 4 × 0.5 strip: near-square pieces (11 of 0.36 × 0.5), not 4 × 4 long strips.
+        let strip = vec![
+            DVec3::ZERO,
+            DVec3::new(4.0, 0.0, 0.0),
+            DVec3::new(4.0, 0.5, 0.0),
+            DVec3::new(0.0, 0.5, 0.0),
+        ];
+        let pieces = sub_areas(&strip, 4);
+        assert!((8..=32).contains(&pieces.len()), "{} pieces", pieces.len());
+        assert_tiles(&strip, &pieces, "strip");
+        for p in &pieces {
+            let (a, b) = (p[0].distance(p[1]), p[1].distance(p[2]));
+            assert!(a.max(b) / a.min(b) <= 2.0, "a {a} × {b} piece");
+        }
+        // A square: exactly k × k squares.
+        let square = vec![DVec3::ZERO, DVec3::X, DVec3::new(1.0, 1.0, 0.0), DVec3::Y];
+        assert_eq!(sub_areas(&square, 5).len(), 25);
+        let triangle = vec![DVec3::ZERO, DVec3::X, DVec3::new(0.2, 0.9, 0.3)];
+        let pieces = sub_areas(&triangle, 3);
+        assert_eq!(pieces.len(), 9);
+        assert_tiles(&triangle, &pieces, "triangle");
+        // A 64-gon: about k² pieces, none a sliver reaching across the disk.
+        let disk: Vec<DVec3> = (0..64)
+            .map(|i| {
+                let a = std::f64::consts::TAU * i as f64 / 64.0;
+                DVec3::new(a.cos(), a.sin(), 0.0)
+            })
+            .collect();
+        let pieces = sub_areas(&disk, 4);
+        assert!((8..=32).contains(&pieces.len()), "{} pieces", pieces.len());
+        assert_tiles(&disk, &pieces, "64-gon");
+        let side = newell(&disk).1.sqrt() / 4.0;
+        for p in &pieces {
+            let diameter = p
+                .iter()
+                .flat_map(|a| p.iter().map(move |b| a.distance(*b)))
+                .fold(0.0, f64::max);
+            assert!(
+                diameter <= side * 2f64.sqrt() + 1e-12,
+                "piece of diameter {diameter}"
+            );
+        }
+    }
 }

@@ -86,7 +86,10 @@ impl AreaSampler {
 
     fn sample(&self, rng: &mut Pcg64Mcg) -> DVec3 {
         let pick: f64 = rng.random();
-        let i = self.cdf.partition_point(|&c| c < pick).min(self.tris.len() - 1);
+        let i = self
+            .cdf
+            .partition_point(|&c| c < pick)
+            .min(self.tris.len() - 1);
         let [a, b, c] = self.tris[i];
         let (u, v): (f64, f64) = (rng.random(), rng.random());
         let s = u.sqrt();
@@ -139,7 +142,7 @@ impl Target {
             return None; // parallel, or arriving at the back
         }
         let t = (self.origin - x).dot(self.normal) / denom;
-        if !(t > 0.0) {
+        if t.is_nan() || t <= 0.0 {
             return None;
         }
         let p = x + d * t - self.origin;
@@ -235,7 +238,15 @@ impl ElementLocator {
             .iter()
             .enumerate()
             .filter(|(_, e)| e.surface as usize == surface)
-            .map(|(i, e)| (i as u32, e.corners.iter().map(|&c| flat(mesh.vertices[c as usize])).collect()))
+            .map(|(i, e)| {
+                (
+                    i as u32,
+                    e.corners
+                        .iter()
+                        .map(|&c| flat(mesh.vertices[c as usize]))
+                        .collect(),
+                )
+            })
             .collect();
         let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
         for q in loops.iter().flat_map(|(_, l)| l) {
@@ -278,7 +289,10 @@ impl ElementLocator {
     fn find(&self, p: DVec3) -> Option<u32> {
         let q = DVec2::new((p - self.origin).dot(self.u), (p - self.origin).dot(self.w));
         let index = |axis: usize| {
-            (((q[axis] - self.lo[axis]) / self.cell[axis]).floor().max(0.0) as usize).min(self.dims[axis] - 1)
+            (((q[axis] - self.lo[axis]) / self.cell[axis])
+                .floor()
+                .max(0.0) as usize)
+                .min(self.dims[axis] - 1)
         };
         let candidates = &self.cells[index(0) * self.dims[1] + index(1)];
         let mut best: Option<(f64, u32)> = None;
@@ -315,7 +329,11 @@ impl<'a> MonteCarlo<'a> {
         Self::with_params(mesh, visibility, MonteCarloParams::default())
     }
 
-    pub fn with_params(mesh: &'a Mesh, visibility: &'a Visibility, params: MonteCarloParams) -> Self {
+    pub fn with_params(
+        mesh: &'a Mesh,
+        visibility: &'a Visibility,
+        params: MonteCarloParams,
+    ) -> Self {
         Self {
             mesh,
             visibility,
@@ -336,7 +354,11 @@ impl<'a> MonteCarlo<'a> {
 
     fn trace(&self, element: usize) -> Vec<(u32, u32)> {
         let e = &self.mesh.elements[element];
-        let corners: Vec<DVec3> = e.corners.iter().map(|&c| self.mesh.vertices[c as usize]).collect();
+        let corners: Vec<DVec3> = e
+            .corners
+            .iter()
+            .map(|&c| self.mesh.vertices[c as usize])
+            .collect();
         let sampler = AreaSampler::new(&corners);
         let mut rng = stream(self.params.seed, element as u64);
         let lift = e.normal * self.visibility.offset();
@@ -387,10 +409,12 @@ impl FormFactors for MonteCarlo<'_> {
     /// The share of the element's rays that landed on `source` first.
     fn element_pair(&self, element: usize, source: usize) -> Option<f64> {
         let row = self.row_of(element);
-        Some(match row.binary_search_by_key(&(source as u32), |(h, _)| *h) {
-            Ok(i) => self.fraction(row[i].1),
-            Err(_) => 0.0,
-        })
+        Some(
+            match row.binary_search_by_key(&(source as u32), |(h, _)| *h) {
+                Ok(i) => self.fraction(row[i].1),
+                Err(_) => 0.0,
+            },
+        )
     }
 
     fn resolves_elements(&self) -> bool {
@@ -421,11 +445,19 @@ mod tests {
         let t = Target::new(&v);
         let mut rng = stream(3, 0);
         for _ in 0..10_000 {
-            let q = DVec3::new(rng.random_range(-1.2..1.2), rng.random_range(-1.2..1.2), 0.0);
+            let q = DVec3::new(
+                rng.random_range(-1.2..1.2),
+                rng.random_range(-1.2..1.2),
+                0.0,
+            );
             // Inside a convex polygon iff left of every edge.
             let inside = (0..n).all(|i| (v[(i + 1) % n] - v[i]).cross(q - v[i]).z >= 0.0);
             let p = q - t.origin;
-            assert_eq!(t.contains(DVec2::new(p.dot(t.u), p.dot(t.w))), inside, "{q}");
+            assert_eq!(
+                t.contains(DVec2::new(p.dot(t.u), p.dot(t.w))),
+                inside,
+                "{q}"
+            );
         }
     }
 
@@ -435,7 +467,13 @@ mod tests {
         let mut rng = stream(5, 0);
         let n = DVec3::new(1.0, 2.0, -0.5).normalize();
         let m = 200_000;
-        let mean: f64 = (0..m).map(|_| cosine_direction(n, &mut rng).dot(n)).sum::<f64>() / m as f64;
-        assert!((mean - 2.0 / 3.0).abs() < 4.0 * 0.24 / (m as f64).sqrt(), "{mean}");
+        let mean: f64 = (0..m)
+            .map(|_| cosine_direction(n, &mut rng).dot(n))
+            .sum::<f64>()
+            / m as f64;
+        assert!(
+            (mean - 2.0 / 3.0).abs() < 4.0 * 0.24 / (m as f64).sqrt(),
+            "{mean}"
+        );
     }
 }

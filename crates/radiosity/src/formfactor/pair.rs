@@ -17,7 +17,10 @@
 //! to the swapped problem (not reciprocity, so that reciprocity can be tested), and is not
 //! defined for a differential `from`.
 
-use super::{analytic, hemicube, monte_carlo, point_sampled, raycast, FormFactorMethod, FormFactors, Visibility};
+use super::{
+    analytic, hemicube, monte_carlo, point_sampled, raycast, FormFactorMethod, FormFactors,
+    Visibility,
+};
 use crate::geometry::{split_into_convex, GeometryError, Polygon, COORDINATE_LIMIT};
 use crate::mesh::{Mesh, MeshOptions};
 use crate::scene::{Material, MaterialId, Origin, Scene, Surface};
@@ -55,7 +58,10 @@ pub struct Estimate {
 
 impl Estimate {
     pub fn exact(value: f64) -> Self {
-        Self { value, stderr: None }
+        Self {
+            value,
+            stderr: None,
+        }
     }
 }
 
@@ -74,7 +80,11 @@ impl PairProblem {
     /// Validates and builds a problem: every polygon finite, in range, non-degenerate, planar
     /// and convex (occluders may be non-convex or slightly twisted quads: they are split); a
     /// point source finite with a non-zero normal (normalised here).
-    pub fn new(from: Source, to: Vec<DVec3>, occluders: Vec<Vec<DVec3>>) -> Result<Self, PairError> {
+    pub fn new(
+        from: Source,
+        to: Vec<DVec3>,
+        occluders: Vec<Vec<DVec3>>,
+    ) -> Result<Self, PairError> {
         let polygon = |what: &str, v: Vec<DVec3>| {
             Polygon::new(v).map_err(|source| PairError::Geometry {
                 what: what.to_owned(),
@@ -101,7 +111,7 @@ impl PairProblem {
                     });
                 }
                 let len = normal.length();
-                if !(len > 1e-300) {
+                if len <= 1e-300 {
                     return Err(PairError::Format(format!(
                         "from: normal [{}, {}, {}] has zero length",
                         normal.x, normal.y, normal.z
@@ -138,7 +148,10 @@ impl PairProblem {
                 excerpt(&value)
             )));
         };
-        if let Some(key) = map.keys().find(|k| !["from", "to", "occluders"].contains(&k.as_str())) {
+        if let Some(key) = map
+            .keys()
+            .find(|k| !["from", "to", "occluders"].contains(&k.as_str()))
+        {
             return Err(PairError::Format(format!(
                 "unknown key '{key}' (expected \"from\", \"to\" and optionally \"occluders\")"
             )));
@@ -146,7 +159,10 @@ impl PairProblem {
         let from = match map.get("from") {
             None => return Err(PairError::Format("missing \"from\"".into())),
             Some(Value::Object(point)) => {
-                if let Some(key) = point.keys().find(|k| !["point", "normal"].contains(&k.as_str())) {
+                if let Some(key) = point
+                    .keys()
+                    .find(|k| !["point", "normal"].contains(&k.as_str()))
+                {
                     return Err(PairError::Format(format!(
                         "from: unknown key '{key}' (a differential area is {{\"point\": [x, y, z], \"normal\": [x, y, z]}})"
                     )));
@@ -166,7 +182,8 @@ impl PairProblem {
         };
         let to = vertices(
             "to",
-            map.get("to").ok_or_else(|| PairError::Format("missing \"to\"".into()))?,
+            map.get("to")
+                .ok_or_else(|| PairError::Format("missing \"to\"".into()))?,
         )?;
         let occluders = match map.get("occluders") {
             None | Some(Value::Null) => Vec::new(),
@@ -218,7 +235,11 @@ impl PairProblem {
             Source::Polygon(v) => v,
             Source::Point { point, .. } => std::slice::from_ref(point),
         };
-        for p in from.iter().chain(&self.to).chain(self.occluders.iter().flatten()) {
+        for p in from
+            .iter()
+            .chain(&self.to)
+            .chain(self.occluders.iter().flatten())
+        {
             lo = lo.min(*p);
             hi = hi.max(*p);
         }
@@ -244,7 +265,12 @@ fn excerpt(v: &Value) -> String {
 }
 
 fn vertex(what: &str, v: &Value) -> Result<DVec3, PairError> {
-    let bad = || PairError::Format(format!("{what}: expected [x, y, z] (three numbers), got {}", excerpt(v)));
+    let bad = || {
+        PairError::Format(format!(
+            "{what}: expected [x, y, z] (three numbers), got {}",
+            excerpt(v)
+        ))
+    };
     let Value::Array(xyz) = v else {
         return Err(bad());
     };
@@ -326,7 +352,11 @@ impl PairResult {
 
 /// Solves a pair problem with one method: F_{from→to}, and F_{to→from} from the swapped
 /// problem where `from` is a polygon.
-pub fn solve_pair(problem: &PairProblem, method: FormFactorMethod, settings: &PairSettings) -> PairResult {
+pub fn solve_pair(
+    problem: &PairProblem,
+    method: FormFactorMethod,
+    settings: &PairSettings,
+) -> PairResult {
     let start = Instant::now();
     let from_to = estimate(problem, method, settings);
     let to_from = problem.swapped().map(|p| {
@@ -346,18 +376,26 @@ pub fn solve_pair(problem: &PairProblem, method: FormFactorMethod, settings: &Pa
 }
 
 /// F_{from→to} by one method.
-pub fn estimate(problem: &PairProblem, method: FormFactorMethod, settings: &PairSettings) -> Estimate {
+pub fn estimate(
+    problem: &PairProblem,
+    method: FormFactorMethod,
+    settings: &PairSettings,
+) -> Estimate {
     match method {
         FormFactorMethod::AnalyticPoint => analytic::analytic_point_pair(problem),
         FormFactorMethod::AnalyticPolygon => analytic::analytic_polygon_pair(problem),
         FormFactorMethod::PointSampled => point_sampled::point_sampled_pair(
             problem,
-            settings.samples.unwrap_or(point_sampled::DEFAULT_PAIR_SAMPLES),
+            settings
+                .samples
+                .unwrap_or(point_sampled::DEFAULT_PAIR_SAMPLES),
         ),
         FormFactorMethod::Hemicube => hemicube::hemicube_pair(
             problem,
             &hemicube::HemicubeParams {
-                resolution: settings.resolution.unwrap_or(hemicube::HemicubeParams::default().resolution),
+                resolution: settings
+                    .resolution
+                    .unwrap_or(hemicube::HemicubeParams::default().resolution),
                 ..Default::default()
             },
         ),
@@ -382,7 +420,9 @@ pub fn raycast_pair(problem: &PairProblem) -> Estimate {
     let params = raycast::RaycastParams::default();
     let (point, normal) = match &problem.from {
         Source::Point { point, normal } => (*point, *normal),
-        Source::Polygon(from) => return Estimate::exact(raycast_polygon_pair(from, problem, params)),
+        Source::Polygon(from) => {
+            return Estimate::exact(raycast_polygon_pair(from, problem, params))
+        }
     };
     let to_normal = crate::geometry::newell(&problem.to).0;
     let f = super::analytic_point::point_to_polygon(point, normal, &problem.to, to_normal);
@@ -399,7 +439,11 @@ pub fn raycast_pair(problem: &PairProblem) -> Estimate {
     Estimate::exact(f * fraction)
 }
 
-fn raycast_polygon_pair(from: &[DVec3], problem: &PairProblem, params: raycast::RaycastParams) -> f64 {
+fn raycast_polygon_pair(
+    from: &[DVec3],
+    problem: &PairProblem,
+    params: raycast::RaycastParams,
+) -> f64 {
     let material = Material {
         name: "grey".into(),
         reflectance: [0.5; 3],
@@ -412,7 +456,10 @@ fn raycast_polygon_pair(from: &[DVec3], problem: &PairProblem, params: raycast::
         polygon: Polygon::new_unchecked(vertices.to_vec()),
         origin: Origin::default(),
     };
-    let mut surfaces = vec![surface("from".into(), from), surface("to".into(), &problem.to)];
+    let mut surfaces = vec![
+        surface("from".into(), from),
+        surface("to".into(), &problem.to),
+    ];
     for (i, o) in problem.occluders.iter().enumerate() {
         surfaces.push(surface(format!("occluder {i}"), o));
     }
@@ -439,7 +486,9 @@ fn raycast_polygon_pair(from: &[DVec3], problem: &PairProblem, params: raycast::
     let visibility = Visibility::new(&mesh);
     let engine = raycast::Raycast::with_params(&mesh, &visibility, params);
     let area: f64 = crate::geometry::newell(from).1;
-    let patches: Vec<usize> = (0..mesh.patches.len()).filter(|&p| is_to(mesh.patches[p].surface)).collect();
+    let patches: Vec<usize> = (0..mesh.patches.len())
+        .filter(|&p| is_to(mesh.patches[p].surface))
+        .collect();
     mesh.elements
         .iter()
         .enumerate()
@@ -482,7 +531,12 @@ mod tests {
         );
         assert_eq!(p.occluders.len(), 1);
         assert!(p.swapped().is_none());
-        let q = PairProblem::new(Source::Polygon(square(0.0, true)), square(1.0, false), vec![]).unwrap();
+        let q = PairProblem::new(
+            Source::Polygon(square(0.0, true)),
+            square(1.0, false),
+            vec![],
+        )
+        .unwrap();
         let s = q.swapped().unwrap();
         assert_eq!(s.to, square(0.0, true));
         assert_eq!(q.from_area(), Some(1.0));
@@ -493,16 +547,37 @@ mod tests {
         let cases = [
             ("[1, 2]", "expected an object"),
             (r#"{"from": [[0,0,0],[1,0,0],[1,1,0]]}"#, "missing \"to\""),
-            (r#"{"from": [[0,0,0],[1,0,0],[2,0,0]], "to": [[0,0,1],[0,1,1],[1,1,1]]}"#, "from: polygon is degenerate"),
-            (r#"{"from": [[0,0,0],[1,0,0],[1,1,0]], "to": [[0,0,1],[0,1,1],[1,"x",1]]}"#, "to: vertex 2"),
-            (r#"{"from": {"point": [0,0,0], "normal": [0,0,0]}, "to": [[0,0,1],[0,1,1],[1,1,1]]}"#, "zero length"),
-            (r#"{"from": [[0,0,0],[1,0,0],[1,1,0]], "to": [[0,0,1],[0,1,1],[1,1,1]], "occluder": []}"#, "unknown key 'occluder'"),
-            (r#"{"from": [[0,0,0],[1,0,0],[1,1,0]], "to": [[0,0,1],[0,1,1],[1,1,1]], "occluders": [[[0,0,0]]]}"#, "occluders[0]"),
-            ("{\"from\": [[0,0,0],[1,0,0],[1,1,0]], \"to\": [[0,0,1],[0,1,1],[1,1,NaN]]}", "not valid JSON"),
+            (
+                r#"{"from": [[0,0,0],[1,0,0],[2,0,0]], "to": [[0,0,1],[0,1,1],[1,1,1]]}"#,
+                "from: polygon is degenerate",
+            ),
+            (
+                r#"{"from": [[0,0,0],[1,0,0],[1,1,0]], "to": [[0,0,1],[0,1,1],[1,"x",1]]}"#,
+                "to: vertex 2",
+            ),
+            (
+                r#"{"from": {"point": [0,0,0], "normal": [0,0,0]}, "to": [[0,0,1],[0,1,1],[1,1,1]]}"#,
+                "zero length",
+            ),
+            (
+                r#"{"from": [[0,0,0],[1,0,0],[1,1,0]], "to": [[0,0,1],[0,1,1],[1,1,1]], "occluder": []}"#,
+                "unknown key 'occluder'",
+            ),
+            (
+                r#"{"from": [[0,0,0],[1,0,0],[1,1,0]], "to": [[0,0,1],[0,1,1],[1,1,1]], "occluders": [[[0,0,0]]]}"#,
+                "occluders[0]",
+            ),
+            (
+                "{\"from\": [[0,0,0],[1,0,0],[1,1,0]], \"to\": [[0,0,1],[0,1,1],[1,1,NaN]]}",
+                "not valid JSON",
+            ),
         ];
         for (text, needle) in cases {
             let err = PairProblem::from_json(text).unwrap_err().to_string();
-            assert!(err.contains(needle), "{text}: '{err}' should mention '{needle}'");
+            assert!(
+                err.contains(needle),
+                "{text}: '{err}' should mention '{needle}'"
+            );
         }
     }
 

@@ -87,7 +87,12 @@ impl<'a> PointSampled<'a> {
         let sources = mesh
             .patches
             .iter()
-            .map(|p| (samples_of(p.polygon.vertices(), samples), p.polygon.normal()))
+            .map(|p| {
+                (
+                    samples_of(p.polygon.vertices(), samples),
+                    p.polygon.normal(),
+                )
+            })
             .collect();
         Self {
             mesh,
@@ -136,7 +141,11 @@ impl FormFactors for PointSampled<'_> {
             return Some(0.0);
         }
         let samples = self.element_sources[source].get_or_init(|| {
-            let corners: Vec<DVec3> = s.corners.iter().map(|&c| self.mesh.vertices[c as usize]).collect();
+            let corners: Vec<DVec3> = s
+                .corners
+                .iter()
+                .map(|&c| self.mesh.vertices[c as usize])
+                .collect();
             samples_of(&corners, self.samples)
         });
         Some(self.receive(element, samples, s.normal))

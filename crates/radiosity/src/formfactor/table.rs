@@ -30,13 +30,19 @@ pub struct ReferenceCase {
 
 /// The reference cases embedded from `tests/reference/formfactors.json`.
 pub fn reference_cases() -> Vec<ReferenceCase> {
-    let doc: Value = serde_json::from_str(REFERENCE).expect("embedded formfactors.json is valid JSON");
+    let doc: Value =
+        serde_json::from_str(REFERENCE).expect("embedded formfactors.json is valid JSON");
     let vertices = |v: &Value| -> Vec<DVec3> {
         v.as_array()
             .expect("polygon")
             .iter()
             .map(|p| {
-                let c: Vec<f64> = p.as_array().expect("vertex").iter().map(|x| x.as_f64().expect("number")).collect();
+                let c: Vec<f64> = p
+                    .as_array()
+                    .expect("vertex")
+                    .iter()
+                    .map(|x| x.as_f64().expect("number"))
+                    .collect();
                 DVec3::new(c[0], c[1], c[2])
             })
             .collect()
@@ -51,7 +57,12 @@ pub fn reference_cases() -> Vec<ReferenceCase> {
                 None => {
                     let d = &c["dA1"];
                     let v = |k: &str| {
-                        let p: Vec<f64> = d[k].as_array().expect(k).iter().map(|x| x.as_f64().expect("number")).collect();
+                        let p: Vec<f64> = d[k]
+                            .as_array()
+                            .expect(k)
+                            .iter()
+                            .map(|x| x.as_f64().expect("number"))
+                            .collect();
                         DVec3::new(p[0], p[1], p[2])
                     };
                     Source::Point {
@@ -70,10 +81,14 @@ pub fn reference_cases() -> Vec<ReferenceCase> {
                         .join(" ")
                 })
                 .unwrap_or_default();
-            let name = c["case"].as_str().expect("case").replace(" (Phi=90deg)", "");
+            let name = c["case"]
+                .as_str()
+                .expect("case")
+                .replace(" (Phi=90deg)", "");
             ReferenceCase {
                 name: format!("{name} {params}"),
-                problem: PairProblem::new(from, vertices(&c["A2"]), Vec::new()).expect("reference geometry is valid"),
+                problem: PairProblem::new(from, vertices(&c["A2"]), Vec::new())
+                    .expect("reference geometry is valid"),
                 f12: c["F12"].as_f64().expect("F12"),
                 f21: c["F21"].as_f64(),
             }
@@ -93,8 +108,10 @@ pub struct TableRow {
     pub mean_error: f64,
     /// Form factors computed (F12 of every case and F21 where defined).
     pub form_factors: usize,
-    /// Wall-clock seconds per form factor.
+    /// Mean wall-clock seconds per form factor (dominated by the 256-gons of C-41).
     pub seconds_per_form_factor: f64,
+    /// Median over the cases of the seconds per form factor.
+    pub median_seconds: f64,
 }
 
 /// Runs `methods` on every reference case.
@@ -105,9 +122,11 @@ pub fn accuracy_table(methods: &[FormFactorMethod], settings: &PairSettings) -> 
         .map(|&method| {
             let (mut max, mut sum, mut count, mut seconds) = (0.0f64, 0.0, 0usize, 0.0);
             let mut worst = String::new();
+            let mut per_case = Vec::with_capacity(cases.len());
             for case in &cases {
                 let r = solve_pair(&case.problem, method, settings);
                 seconds += r.seconds;
+                per_case.push(r.seconds / if r.to_from.is_some() { 2.0 } else { 1.0 });
                 let mut errors = vec![(r.from_to.value - case.f12).abs()];
                 if let (Some(want), Some(got)) = (case.f21, r.to_from) {
                     errors.push((got.value - want).abs());
@@ -130,24 +149,39 @@ pub fn accuracy_table(methods: &[FormFactorMethod], settings: &PairSettings) -> 
                 mean_error: sum / count.max(1) as f64,
                 form_factors: count,
                 seconds_per_form_factor: seconds / count.max(1) as f64,
+                median_seconds: median(&mut per_case),
             }
         })
         .collect()
 }
 
+fn median(v: &mut [f64]) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
 /// The table in Markdown.
 pub fn to_markdown(rows: &[TableRow]) -> String {
     let mut s = String::from(
-        "| method | max abs error | mean abs error | worst case | time per form factor |\n\
-         | --- | --- | --- | --- | --- |\n",
+        "| method | max abs error | mean abs error | worst case | time per form factor (median) | (mean) |\n\
+         | --- | --- | --- | --- | --- | --- |\n",
     );
     for r in rows {
         s.push_str(&format!(
-            "| {} | {:.1e} | {:.1e} | {} | {} |\n",
+            "| {} | {:.1e} | {:.1e} | {} | {} | {} |\n",
             r.method.name(),
             r.max_error,
             r.mean_error,
             r.worst_case,
+            human_seconds(r.median_seconds),
             human_seconds(r.seconds_per_form_factor)
         ));
     }
@@ -175,10 +209,18 @@ mod tests {
         let doc: Value = serde_json::from_str(REFERENCE).unwrap();
         for (case, raw) in cases.iter().zip(doc["cases"].as_array().unwrap()) {
             if let Some(a1) = raw["area_A1"].as_f64() {
-                assert!((case.problem.from_area().unwrap() - a1).abs() < 1e-9 * a1, "{}", case.name);
+                assert!(
+                    (case.problem.from_area().unwrap() - a1).abs() < 1e-9 * a1,
+                    "{}",
+                    case.name
+                );
                 // Reciprocity of the reference values themselves: A1 F12 = A2 F21.
                 let a2 = raw["area_A2"].as_f64().unwrap();
-                assert!((a1 * case.f12 - a2 * case.f21.unwrap()).abs() < 1e-12, "{}", case.name);
+                assert!(
+                    (a1 * case.f12 - a2 * case.f21.unwrap()).abs() < 1e-12,
+                    "{}",
+                    case.name
+                );
             } else {
                 assert!(case.f21.is_none());
             }
