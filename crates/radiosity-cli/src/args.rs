@@ -10,7 +10,7 @@ use std::path::PathBuf;
 /// file; with no scene, the built-in Cornell box. Lengths in metres; radiosity and irradiance
 /// in W·m⁻²; power in W; image pixels are radiance L = B/π.
 #[derive(Debug, Parser)]
-#[command(name = "radiosity", version, about, long_about = None)]
+#[command(name = "radiosity", version, about = "Physically based diffuse global illumination by the radiosity method", long_about = None)]
 pub struct Cli {
     #[command(subcommand)]
     pub command: Command,
@@ -47,7 +47,8 @@ pub struct SolveArgs {
     /// Solver: direct | jacobi | gauss-seidel | progressive [default: progressive].
     #[arg(long)]
     pub solver: Option<String>,
-    /// Form-factor method [default: raycast].
+    /// Form-factor method: raycast | analytic-point | analytic-polygon | point-sampled |
+    /// hemicube | monte-carlo [default: raycast].
     #[arg(long)]
     pub form_factor: Option<String>,
     /// Relative residual (matrix solvers) or unshot power fraction (progressive) to stop at
@@ -57,7 +58,7 @@ pub struct SolveArgs {
     /// Stop progressive refinement after this many shots.
     #[arg(long)]
     pub max_shots: Option<usize>,
-    /// Adaptive meshing: start coarse (a quarter of --elements) and split elements where the
+    /// Adaptive meshing: start coarse (half of --elements) and split elements where the
     /// radiosity changes fast, up to --elements in total.
     #[arg(long)]
     pub adaptive: bool,
