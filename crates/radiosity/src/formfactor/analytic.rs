@@ -29,6 +29,9 @@
 //! exact when nothing occludes, or when an occluder hides whole penumbra sub-areas (as in the
 //! half-hidden test), and otherwise approximates the shadow boundary at the resolution of the
 //! sub-areas.
+//!
+//! Both engines also take a single element as the source ([`FormFactors::element_pair`]), for
+//! the solver's near field, with the same formulas.
 
 use super::analytic_point::point_to_polygon;
 use super::analytic_polygon::polygon_to_polygon;

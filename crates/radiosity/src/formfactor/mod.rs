@@ -47,8 +47,8 @@ pub enum FormFactorMethod {
     /// Haines 1989).
     #[default]
     Raycast,
-    /// Cosine-distributed rays from random points of the element, binned by the patch they
-    /// hit first ([`monte_carlo::MonteCarlo`]).
+    /// Cosine-distributed rays from random points of the element, binned by the element (and
+    /// so the patch) they hit first ([`monte_carlo::MonteCarlo`]).
     MonteCarlo,
 }
 

@@ -11,7 +11,8 @@
 //! terms are 0) and V(x, y) ∈ {0, 1} from one shadow ray through the shared BVH.
 //!
 //! - Mesh engine ([`PointSampled`]): x is the element's centre and the sum runs over about
-//!   `samples` sub-areas of the patch.
+//!   `samples` sub-areas of the patch (or, for the solver's near field, of a single source
+//!   element).
 //! - Pair problems ([`point_sampled_pair`]): a polygon `from` is divided the same way and the
 //!   sum averaged over its sub-areas, (1/A_i) Σ_x ΔA_x Σ_y (…), the double finite sum.
 //!
