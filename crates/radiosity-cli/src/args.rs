@@ -140,7 +140,9 @@ pub struct RenderArgs {
 pub fn parse_vec3(s: &str) -> Result<DVec3, String> {
     let parts: Vec<&str> = s.split(',').map(str::trim).collect();
     if parts.len() != 3 {
-        return Err(format!("expected x,y,z (three comma-separated numbers), got '{s}'"));
+        return Err(format!(
+            "expected x,y,z (three comma-separated numbers), got '{s}'"
+        ));
     }
     let mut v = [0.0; 3];
     for (slot, p) in v.iter_mut().zip(&parts) {

@@ -8,7 +8,9 @@ use radiosity::formfactor::FormFactorMethod;
 use radiosity::io::scene_file::{load_any, SceneSettings};
 use radiosity::io::solution_file::SolutionFile;
 use radiosity::mesh::MeshOptions;
-use radiosity::pipeline::{render_elements, solve_scene, solve_scene_adaptive, Shaded, SolveSettings, Solved};
+use radiosity::pipeline::{
+    render_elements, solve_scene, solve_scene_adaptive, Shaded, SolveSettings, Solved,
+};
 use radiosity::refine::RefineOptions;
 use radiosity::render::RenderOptions;
 use radiosity::report::Report;
@@ -57,10 +59,11 @@ pub(crate) fn solve_settings(args: &SolveArgs, file: &SceneSettings) -> Result<S
         Some(s) => s.parse().map_err(anyhow::Error::msg)?,
         None => SolverKind::default(),
     };
-    let form_factor: FormFactorMethod = match args.form_factor.as_deref().or(file.form_factor.as_deref()) {
-        Some(s) => s.parse().map_err(anyhow::Error::msg)?,
-        None => FormFactorMethod::default(),
-    };
+    let form_factor: FormFactorMethod =
+        match args.form_factor.as_deref().or(file.form_factor.as_deref()) {
+            Some(s) => s.parse().map_err(anyhow::Error::msg)?,
+            None => FormFactorMethod::default(),
+        };
     let mut solve = SolveOptions {
         solver,
         ..Default::default()
@@ -103,9 +106,15 @@ fn run_solve(scene: &Scene, settings: &SolveSettings, args: &SolveArgs) -> Resul
     if !quiet {
         let st = &solved.solution.stats;
         let what = if st.solver == SolverKind::Progressive {
-            format!("{} shots, unshot power fraction {:.2e}", st.iterations, st.residual)
+            format!(
+                "{} shots, unshot power fraction {:.2e}",
+                st.iterations, st.residual
+            )
         } else {
-            format!("{} iterations, relative residual {:.2e}", st.iterations, st.residual)
+            format!(
+                "{} iterations, relative residual {:.2e}",
+                st.iterations, st.residual
+            )
         };
         eprintln!(
             "solved '{}': {} elements, {} patches, {} solver with {} form factors: {what} in {:.2} s ({:.2} s form factors)",
@@ -125,7 +134,12 @@ fn solve(args: SolveCmdArgs) -> Result<()> {
     let (scene, file_settings) = load_scene(args.scene.as_deref())?;
     let settings = solve_settings(&args.solve, &file_settings)?;
     let solved = run_solve(&scene, &settings, &args.solve)?;
-    let report = Report::new(&scene.name, &solved.mesh, &solved.solution, solved.form_factor.name());
+    let report = Report::new(
+        &scene.name,
+        &solved.mesh,
+        &solved.solution,
+        solved.form_factor.name(),
+    );
     if !args.solve.quiet {
         let t = &report.totals;
         let fmt = |p: [f64; 3]| format!("({:.4}, {:.4}, {:.4}) W", p[0], p[1], p[2]);
@@ -158,14 +172,24 @@ fn solve(args: SolveCmdArgs) -> Result<()> {
 
 fn render(args: RenderArgs) -> Result<()> {
     let (name, scene_camera, file_settings, stored) = if let Some(path) = &args.solution {
-        let file = SolutionFile::load(path).with_context(|| format!("loading solution {}", path.display()))?;
-        (file.scene.clone(), file.camera.map(Camera::from), SceneSettings::default(), Some(file))
+        let file = SolutionFile::load(path)
+            .with_context(|| format!("loading solution {}", path.display()))?;
+        (
+            file.scene.clone(),
+            file.camera.map(Camera::from),
+            SceneSettings::default(),
+            Some(file),
+        )
     } else {
         let (scene, settings) = load_scene(args.scene.as_deref())?;
         (scene.name.clone(), scene.camera, settings, None)
     };
     let output: PathBuf = args.output.clone().unwrap_or_else(|| {
-        let stem = if name.is_empty() { "render".to_string() } else { name.clone() };
+        let stem = if name.is_empty() {
+            "render".to_string()
+        } else {
+            name.clone()
+        };
         PathBuf::from(format!("{stem}.png"))
     });
     let width = args.width.or(file_settings.width).unwrap_or(512);
@@ -193,7 +217,11 @@ fn render(args: RenderArgs) -> Result<()> {
         samples_per_axis: args.samples,
         ..RenderOptions::default()
     };
-    let shading = if args.flat { Shading::Flat } else { Shading::Smooth };
+    let shading = if args.flat {
+        Shading::Flat
+    } else {
+        Shading::Smooth
+    };
 
     let image = match stored {
         Some(file) => {
@@ -212,7 +240,9 @@ fn render(args: RenderArgs) -> Result<()> {
             let settings = solve_settings(&args.solve, &file_settings)?;
             let camera = camera_from(&args, scene_camera, Some(&scene))?;
             let solved = run_solve(&scene, &settings, &args.solve)?;
-            let radiosity = solved.solution.display_radiosity(&solved.mesh, args.ambient);
+            let radiosity = solved
+                .solution
+                .display_radiosity(&solved.mesh, args.ambient);
             let shaded = Shaded {
                 vertices: &solved.mesh.vertices,
                 elements: &solved.mesh.elements,
@@ -231,7 +261,11 @@ fn render(args: RenderArgs) -> Result<()> {
 }
 
 /// The camera: flags over the scene's camera over one framing the scene.
-fn camera_from(args: &RenderArgs, scene_camera: Option<Camera>, scene: Option<&Scene>) -> Result<Camera> {
+fn camera_from(
+    args: &RenderArgs,
+    scene_camera: Option<Camera>,
+    scene: Option<&Scene>,
+) -> Result<Camera> {
     let base = scene_camera
         .or_else(|| scene.map(Scene::camera_or_default))
         .unwrap_or_default();
@@ -242,7 +276,10 @@ fn camera_from(args: &RenderArgs, scene_camera: Option<Camera>, scene: Option<&S
         fov_deg: args.fov.unwrap_or(base.fov_deg),
     };
     if !(camera.fov_deg > 0.0 && camera.fov_deg < 180.0) {
-        bail!("--fov must be between 0 and 180 degrees, got {}", camera.fov_deg);
+        bail!(
+            "--fov must be between 0 and 180 degrees, got {}",
+            camera.fov_deg
+        );
     }
     let look = camera.target - camera.eye;
     if look.length() < 1e-12 {

@@ -32,7 +32,10 @@ fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
 /// Asserts a clean failure: non-zero exit, no panic, the message mentions every `needles`.
 fn assert_fails_cleanly(o: &Output, needles: &[&str]) {
     let err = stderr(o);
-    assert!(!o.status.success(), "expected failure, got success; stderr: {err}");
+    assert!(
+        !o.status.success(),
+        "expected failure, got success; stderr: {err}"
+    );
     assert_eq!(o.status.code(), Some(1), "exit code; stderr: {err}");
     assert!(!err.contains("panicked"), "panic: {err}");
     for n in needles {
@@ -44,7 +47,19 @@ fn assert_fails_cleanly(o: &Output, needles: &[&str]) {
 fn render_writes_png_of_requested_size() {
     let d = tmp();
     let out = d.path().join("box.png");
-    let o = run(&[&["render", "-o", out.to_str().unwrap(), "--width", "64", "--height", "48"], FAST].concat());
+    let o = run(&[
+        &[
+            "render",
+            "-o",
+            out.to_str().unwrap(),
+            "--width",
+            "64",
+            "--height",
+            "48",
+        ],
+        FAST,
+    ]
+    .concat());
     assert!(o.status.success(), "{}", stderr(&o));
     let img = image::open(&out).unwrap();
     assert_eq!((img.width(), img.height()), (64, 48));
@@ -86,7 +101,11 @@ fn render_writes_exr_with_reference_camera() {
     // in EXR; everything is finite and non-negative.
     let max_r = img.pixels.iter().map(|p| p[0]).fold(0.0f32, f32::max);
     assert!(max_r > 10.0, "light radiance in EXR: {max_r}");
-    assert!(img.pixels.iter().flatten().all(|v| v.is_finite() && *v >= 0.0));
+    assert!(img
+        .pixels
+        .iter()
+        .flatten()
+        .all(|v| v.is_finite() && *v >= 0.0));
 }
 
 #[test]
@@ -95,10 +114,19 @@ fn solve_writes_report_with_documented_keys() {
     let report = d.path().join("report.json");
     let o = run(&[&["solve", "--report", report.to_str().unwrap()], FAST].concat());
     assert!(o.status.success(), "{}", stderr(&o));
-    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
     let objects = v["objects"].as_array().unwrap();
     assert_eq!(objects.len(), 20);
-    for key in ["name", "area", "reflectance", "emitted_exitance", "radiosity", "irradiance", "absorbed_power"] {
+    for key in [
+        "name",
+        "area",
+        "reflectance",
+        "emitted_exitance",
+        "radiosity",
+        "irradiance",
+        "absorbed_power",
+    ] {
         assert!(objects[0].get(key).is_some(), "object key {key}");
     }
     for key in [
@@ -116,7 +144,10 @@ fn solve_writes_report_with_documented_keys() {
     // Emitted power of the light: E·A = π·L_e·A with A = 0.13 × 0.105 m².
     let emitted = v["totals"]["emitted_power"][0].as_f64().unwrap();
     let expected = std::f64::consts::PI * 17.0 * 0.130 * 0.105;
-    assert!((emitted - expected).abs() < 1e-9 * expected, "{emitted} vs {expected}");
+    assert!(
+        (emitted - expected).abs() < 1e-9 * expected,
+        "{emitted} vs {expected}"
+    );
 }
 
 #[test]
@@ -153,23 +184,70 @@ fn bad_inputs_fail_cleanly() {
     let dir = d.path();
     write(dir, "m.mtl", "newmtl white\nKd 0.5 0.5 0.5\nKe 0 0 0\n");
     write(dir, "hot.mtl", "newmtl hot\nKd 1.2 0.5 0.5\n");
-    let good_face = "mtllib m.mtl\no quad\nusemtl white\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n";
+    let good_face =
+        "mtllib m.mtl\no quad\nusemtl white\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n";
     let cases: Vec<(&str, String, Vec<&str>)> = vec![
         ("missing.obj", String::new(), vec!["missing.obj"]),
-        ("malformed.obj", good_face.replace("v 1 1 0", "v 1 x 0"), vec!["malformed.obj"]),
-        ("index.obj", good_face.replace("f 1 2 3 4", "f 1 2 3 40"), vec!["index.obj"]),
-        ("nan.obj", good_face.replace("v 1 1 0", "v 1 nan 0"), vec!["nan.obj"]),
-        ("degenerate.obj", good_face.replace("v 1 1 0", "v 2 0 0").replace("v 0 1 0", "v 3 0 0"), vec!["degenerate.obj", "quad"]),
-        ("nomat.obj", good_face.replace("usemtl white", "usemtl plaid"), vec!["nomat.obj", "plaid"]),
-        ("rho.obj", good_face.replace("m.mtl", "hot.mtl").replace("usemtl white", "usemtl hot"), vec!["hot.mtl", "hot", "1.2"]),
-        ("huge.obj", good_face.replace("v 1 1 0", "v 1e300 1 0"), vec!["huge.obj"]),
+        (
+            "malformed.obj",
+            good_face.replace("v 1 1 0", "v 1 x 0"),
+            vec!["malformed.obj"],
+        ),
+        (
+            "index.obj",
+            good_face.replace("f 1 2 3 4", "f 1 2 3 40"),
+            vec!["index.obj"],
+        ),
+        (
+            "nan.obj",
+            good_face.replace("v 1 1 0", "v 1 nan 0"),
+            vec!["nan.obj"],
+        ),
+        (
+            "degenerate.obj",
+            good_face
+                .replace("v 1 1 0", "v 2 0 0")
+                .replace("v 0 1 0", "v 3 0 0"),
+            vec!["degenerate.obj", "quad"],
+        ),
+        (
+            "nomat.obj",
+            good_face.replace("usemtl white", "usemtl plaid"),
+            vec!["nomat.obj", "plaid"],
+        ),
+        (
+            "rho.obj",
+            good_face
+                .replace("m.mtl", "hot.mtl")
+                .replace("usemtl white", "usemtl hot"),
+            vec!["hot.mtl", "hot", "1.2"],
+        ),
+        (
+            "huge.obj",
+            good_face.replace("v 1 1 0", "v 1e300 1 0"),
+            vec!["huge.obj"],
+        ),
         ("scene.txt", "hello".into(), vec!["scene.txt"]),
-        ("bad.json", "{\n  \"name\": \"x\",\n  \"surfaces\": [\n}".into(), vec!["bad.json", "line"]),
+        (
+            "bad.json",
+            "{\n  \"name\": \"x\",\n  \"surfaces\": [\n}".into(),
+            vec!["bad.json", "line"],
+        ),
     ];
     for (name, text, needles) in cases {
-        let path = if name == "missing.obj" { dir.join(name) } else { write(dir, name, &text) };
+        let path = if name == "missing.obj" {
+            dir.join(name)
+        } else {
+            write(dir, name, &text)
+        };
         let out = dir.join(format!("{name}.png"));
-        let o = run(&["render", path.to_str().unwrap(), "-o", out.to_str().unwrap(), "--quiet"]);
+        let o = run(&[
+            "render",
+            path.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--quiet",
+        ]);
         assert_fails_cleanly(&o, &needles);
         assert!(!out.exists(), "{name}: output left behind");
     }
@@ -184,22 +262,48 @@ fn bad_options_fail_cleanly() {
     let cases: Vec<(Vec<&str>, &str)> = vec![
         (vec!["render", "-o", o_str, "--width", "0"], "width"),
         (vec!["render", "-o", o_str, "--width", "100000"], "width"),
-        (vec!["render", "-o", o_str, "--max-element-size", "1e-7"], "elements"),
-        (vec!["render", "-o", o_str, "--max-element-size", "-1"], "element size"),
+        (
+            vec!["render", "-o", o_str, "--max-element-size", "1e-7"],
+            "elements",
+        ),
+        (
+            vec!["render", "-o", o_str, "--max-element-size", "-1"],
+            "element size",
+        ),
         (vec!["render", "-o", o_str, "--solver", "magic"], "magic"),
-        (vec!["render", "-o", o_str, "--form-factor", "guess"], "guess"),
+        (
+            vec!["render", "-o", o_str, "--form-factor", "guess"],
+            "guess",
+        ),
         (vec!["render", "-o", o_str, "--eye", "1,2"], "x,y,z"),
         (vec!["render", "-o", o_str, "--fov", "0"], "fov"),
-        (vec!["solve", "--solver", "direct", "--elements", "200000", "--patch-subdivision", "1"], "MiB"),
+        (
+            vec![
+                "solve",
+                "--solver",
+                "direct",
+                "--elements",
+                "200000",
+                "--patch-subdivision",
+                "1",
+            ],
+            "MiB",
+        ),
         (vec!["render", "-o", &bmp], "bmp"),
-        (vec!["render", "--solution", "/nonexistent/sol.json", "-o", o_str], "sol.json"),
+        (
+            vec!["render", "--solution", "/nonexistent/sol.json", "-o", o_str],
+            "sol.json",
+        ),
     ];
     for (args, needle) in cases {
         let o = run(&[&args[..], &["--quiet"]].concat());
         let err = stderr(&o);
         assert!(!o.status.success(), "{args:?} should fail");
         assert!(!err.contains("panicked"), "{args:?}: {err}");
-        assert!(err.contains(needle), "{args:?}: message should mention '{needle}': {err}");
+        assert!(
+            err.contains(needle),
+            "{args:?}: message should mention '{needle}': {err}"
+        );
         assert!(!out.exists(), "{args:?}: output left behind");
     }
 }

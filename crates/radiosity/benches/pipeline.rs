@@ -34,7 +34,9 @@ fn form_factors(c: &mut Criterion) {
         let mesh = Mesh::build(&scene, &settings(n).mesh).unwrap();
         let vis = Visibility::new(&mesh);
         let ff = FormFactorMethod::Raycast.engine(&mesh, &vis);
-        g.throughput(Throughput::Elements((mesh.len() * mesh.patches.len()) as u64));
+        g.throughput(Throughput::Elements(
+            (mesh.len() * mesh.patches.len()) as u64,
+        ));
         g.bench_with_input(BenchmarkId::from_parameter(mesh.len()), &mesh, |b, mesh| {
             b.iter(|| CouplingMatrix::compute(ff.as_ref(), mesh, &NoProgress))
         });

@@ -65,7 +65,10 @@ impl Conformity {
                         let d = b - a;
                         let len2 = d.length_squared();
                         let tol = 1e-7 * len2.sqrt();
-                        let (lo, hi) = (key(a.min(b) - DVec3::splat(tol)), key(a.max(b) + DVec3::splat(tol)));
+                        let (lo, hi) = (
+                            key(a.min(b) - DVec3::splat(tol)),
+                            key(a.max(b) + DVec3::splat(tol)),
+                        );
                         let mut found = Vec::new();
                         if (hi.0 - lo.0 + 1) * (hi.1 - lo.1 + 1) * (hi.2 - lo.2 + 1) > 4096 {
                             return found; // a huge edge: skip the search rather than stall
@@ -183,7 +186,12 @@ pub fn shaded_triangles(
                 centre_value[ch] += v[ch] / n as f64;
             }
         }
-        let centre = e.corners.iter().map(|&c| vertices[c as usize]).sum::<DVec3>() / n as f64;
+        let centre = e
+            .corners
+            .iter()
+            .map(|&c| vertices[c as usize])
+            .sum::<DVec3>()
+            / n as f64;
         for k in 0..loop_pts.len() {
             let (p, vp) = loop_pts[k];
             let (q, vq) = loop_pts[(k + 1) % loop_pts.len()];
@@ -199,7 +207,12 @@ pub fn shaded_triangles(
 /// A hanging vertex of the same surface (left by adaptive refinement) takes the value
 /// interpolated along the coarse edge it lies on, so both sides of the edge shade alike (no
 /// seam). Longer edges first, so chains of hanging vertices resolve coarse to fine.
-fn constrain_hanging(vertices: &[DVec3], elements: &[Element], conformity: &Conformity, vertex_b: &mut [[f64; 3]]) {
+fn constrain_hanging(
+    vertices: &[DVec3],
+    elements: &[Element],
+    conformity: &Conformity,
+    vertex_b: &mut [[f64; 3]],
+) {
     let mut surface_of = vec![u32::MAX; vertices.len()];
     for e in elements {
         for &c in &e.corners {

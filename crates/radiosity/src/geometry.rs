@@ -401,6 +401,8 @@ mod tests {
             .unwrap();
         let (_, area) = newell(&clipped);
         assert!((area - 0.75).abs() < 1e-15);
-        assert!(p.clip_to_halfspace(DVec3::new(2.0, 0.0, 0.0), DVec3::X).is_none());
+        assert!(p
+            .clip_to_halfspace(DVec3::new(2.0, 0.0, 0.0), DVec3::X)
+            .is_none());
     }
 }

@@ -58,7 +58,9 @@ pub enum MeshError {
     BadElementCount(usize),
     #[error("patch subdivision must be between 1 and 64, got {0}")]
     BadPatchSubdivision(u32),
-    #[error("meshing would create about {estimate} elements (limit {limit}); use a larger element size")]
+    #[error(
+        "meshing would create about {estimate} elements (limit {limit}); use a larger element size"
+    )]
     TooManyElements { estimate: usize, limit: usize },
     #[error("the scene has no surfaces")]
     EmptyScene,
@@ -168,7 +170,10 @@ impl Mesh {
         for (index, (scene_surface, polygon)) in pieces.iter().enumerate() {
             let surface = &scene.surfaces[*scene_surface];
             let material = scene.material(surface);
-            let object = objects.iter().position(|o| *o == surface.object).unwrap_or(0) as u32;
+            let object = objects
+                .iter()
+                .position(|o| *o == surface.object)
+                .unwrap_or(0) as u32;
             mesh.surfaces.push(SurfaceData {
                 object,
                 scene_surface: *scene_surface as u32,
@@ -176,7 +181,12 @@ impl Mesh {
                 exitance: material.exitance(),
             });
             mesh.surface_polygons.push(polygon.clone());
-            mesh.mesh_surface(SurfaceId(index as u32), polygon, size, options.patch_subdivision);
+            mesh.mesh_surface(
+                SurfaceId(index as u32),
+                polygon,
+                size,
+                options.patch_subdivision,
+            );
         }
         Ok(mesh)
     }
@@ -229,7 +239,10 @@ impl Mesh {
             let (nu, nv) = (pu * ku, pv * kv);
             let point = |i: u32, j: u32| {
                 let (u, w) = (i as f64 / nu as f64, j as f64 / nv as f64);
-                (1.0 - u) * (1.0 - w) * v[0] + u * (1.0 - w) * v[1] + u * w * v[2] + (1.0 - u) * w * v[3]
+                (1.0 - u) * (1.0 - w) * v[0]
+                    + u * (1.0 - w) * v[1]
+                    + u * w * v[2]
+                    + (1.0 - u) * w * v[3]
             };
             for a in 0..pu {
                 for b in 0..pv {
@@ -260,7 +273,13 @@ impl Mesh {
             // diagonals conform (lattice points on a shared diagonal are computed bit-identically).
             let level_len = polygon
                 .triangles()
-                .flat_map(|t| [t[0].distance(t[1]), t[1].distance(t[2]), t[2].distance(t[0])])
+                .flat_map(|t| {
+                    [
+                        t[0].distance(t[1]),
+                        t[1].distance(t[2]),
+                        t[2].distance(t[0]),
+                    ]
+                })
                 .fold(0.0, f64::max);
             let (m, k) = split_count(level_len, size, sub);
             let n = m * k;
@@ -408,7 +427,9 @@ pub fn split_at_contacts(scene: &Scene) -> Vec<(usize, Polygon)> {
                 continue;
             }
             for (a, b) in t.polygon.edges() {
-                if s.polygon.plane_distance(a).abs() > tol || s.polygon.plane_distance(b).abs() > tol {
+                if s.polygon.plane_distance(a).abs() > tol
+                    || s.polygon.plane_distance(b).abs() > tol
+                {
                     continue;
                 }
                 let cut = n.cross(b - a).normalize();
@@ -605,8 +626,14 @@ mod tests {
             Err(MeshError::TooManyElements { .. })
         ));
         o.max_element_size = Some(f64::NAN);
-        assert!(matches!(Mesh::build(&s, &o), Err(MeshError::BadElementSize(_))));
+        assert!(matches!(
+            Mesh::build(&s, &o),
+            Err(MeshError::BadElementSize(_))
+        ));
         o.max_element_size = Some(-1.0);
-        assert!(matches!(Mesh::build(&s, &o), Err(MeshError::BadElementSize(_))));
+        assert!(matches!(
+            Mesh::build(&s, &o),
+            Err(MeshError::BadElementSize(_))
+        ));
     }
 }

@@ -38,7 +38,11 @@ pub enum PipelineError {
 }
 
 /// Meshes and solves a scene.
-pub fn solve_scene(scene: &Scene, settings: &SolveSettings, progress: &dyn Progress) -> Result<Solved, PipelineError> {
+pub fn solve_scene(
+    scene: &Scene,
+    settings: &SolveSettings,
+    progress: &dyn Progress,
+) -> Result<Solved, PipelineError> {
     let mesh = Mesh::build(scene, &settings.mesh)?;
     let solution = {
         let visibility = Visibility::new(&mesh);
@@ -66,8 +70,11 @@ pub fn solve_scene_adaptive(
 ) -> Result<Solved, PipelineError> {
     let mut coarse = settings.mesh;
     coarse.elements = (coarse.elements / 2).max(1);
-    coarse.max_element_size = coarse.max_element_size.map(|h| std::f64::consts::SQRT_2 * h);
-    coarse.patch_subdivision = ((coarse.patch_subdivision as f64 / std::f64::consts::SQRT_2).round() as u32).max(1);
+    coarse.max_element_size = coarse
+        .max_element_size
+        .map(|h| std::f64::consts::SQRT_2 * h);
+    coarse.patch_subdivision =
+        ((coarse.patch_subdivision as f64 / std::f64::consts::SQRT_2).round() as u32).max(1);
     let mut mesh = Mesh::build(scene, &coarse)?;
     loop {
         let solution = {

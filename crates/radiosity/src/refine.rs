@@ -62,7 +62,9 @@ pub fn gradients(mesh: &Mesh, radiosity: &[[f64; 3]]) -> Vec<f64> {
                     if n as usize == i || other.surface != e.surface {
                         continue;
                     }
-                    let d: f64 = (0..3).map(|ch| (radiosity[i][ch] - radiosity[n as usize][ch]).abs()).sum();
+                    let d: f64 = (0..3)
+                        .map(|ch| (radiosity[i][ch] - radiosity[n as usize][ch]).abs())
+                        .sum();
                     g = g.max(d);
                 }
             }
@@ -90,7 +92,9 @@ pub fn mark(mesh: &Mesh, radiosity: &[[f64; 3]], options: &RefineOptions) -> Vec
         .iter()
         .enumerate()
         .filter(|(i, e)| {
-            e.depth < options.max_depth && g[*i] > limit && mesh.exitance(e).iter().all(|&x| x == 0.0)
+            e.depth < options.max_depth
+                && g[*i] > limit
+                && mesh.exitance(e).iter().all(|&x| x == 0.0)
         })
         .map(|(i, e)| (g[i] * e.area.sqrt(), i))
         .collect();
@@ -126,7 +130,8 @@ pub fn refine(mesh: &Mesh, marked: &[bool]) -> Mesh {
             (vertices.len() - 1) as u32
         })
     };
-    let mut elements = Vec::with_capacity(mesh.elements.len() + 3 * marked.iter().filter(|m| **m).count());
+    let mut elements =
+        Vec::with_capacity(mesh.elements.len() + 3 * marked.iter().filter(|m| **m).count());
     let mut patches = mesh.patches.clone();
     for (pi, patch) in mesh.patches.iter().enumerate() {
         let first = elements.len() as u32;
@@ -142,7 +147,12 @@ pub fn refine(mesh: &Mesh, marked: &[bool]) -> Mesh {
             let p: Vec<DVec3> = e.corners.iter().map(|&c| vertices[c as usize]).collect();
             let mid = |a: DVec3, b: DVec3| (a + b) * 0.5;
             let children: Vec<Vec<DVec3>> = if p.len() == 4 {
-                let (ab, bc, cd, da) = (mid(p[0], p[1]), mid(p[1], p[2]), mid(p[2], p[3]), mid(p[3], p[0]));
+                let (ab, bc, cd, da) = (
+                    mid(p[0], p[1]),
+                    mid(p[1], p[2]),
+                    mid(p[2], p[3]),
+                    mid(p[3], p[0]),
+                );
                 let centre = (p[0] + p[1] + p[2] + p[3]) * 0.25;
                 vec![
                     vec![p[0], ab, centre, da],
@@ -152,11 +162,19 @@ pub fn refine(mesh: &Mesh, marked: &[bool]) -> Mesh {
                 ]
             } else {
                 let (ab, bc, ca) = (mid(p[0], p[1]), mid(p[1], p[2]), mid(p[2], p[0]));
-                vec![vec![p[0], ab, ca], vec![ab, p[1], bc], vec![ca, bc, p[2]], vec![ab, bc, ca]]
+                vec![
+                    vec![p[0], ab, ca],
+                    vec![ab, p[1], bc],
+                    vec![ca, bc, p[2]],
+                    vec![ab, bc, ca],
+                ]
             };
             for child in children {
                 let polygon = crate::geometry::Polygon::new_unchecked(child.clone());
-                let corners = child.iter().map(|q| vertex(e.surface, *q, &mut vertices)).collect();
+                let corners = child
+                    .iter()
+                    .map(|q| vertex(e.surface, *q, &mut vertices))
+                    .collect();
                 elements.push(Element {
                     surface: e.surface,
                     patch: e.patch,
@@ -243,20 +261,33 @@ mod tests {
         marked[last] = true;
         let fine = refine(&mesh, &marked);
         assert_eq!(fine.len(), mesh.len() + 9);
-        let area = |m: &Mesh, s: u32| m.elements.iter().filter(|e| e.surface == s).map(|e| e.area).sum::<f64>();
+        let area = |m: &Mesh, s: u32| {
+            m.elements
+                .iter()
+                .filter(|e| e.surface == s)
+                .map(|e| e.area)
+                .sum::<f64>()
+        };
         for s in 0..2 {
             assert!((area(&mesh, s) - area(&fine, s)).abs() < 1e-12);
         }
         for p in &fine.patches {
             assert!((fine.patch_area(p) - p.polygon.area()).abs() < 1e-12);
             for e in p.elements.clone() {
-                assert_eq!(fine.elements[e as usize].patch.0 as usize, fine.patches.iter().position(|q| q == p).unwrap());
+                assert_eq!(
+                    fine.elements[e as usize].patch.0 as usize,
+                    fine.patches.iter().position(|q| q == p).unwrap()
+                );
             }
         }
         // 2 quads split side by side: 5 + 5 new vertices, sharing 1 edge midpoint → 9 ...
         // plus the triangle's 3 midpoints.
         assert_eq!(fine.vertices.len(), mesh.vertices.len() + 9 + 3);
-        assert!(fine.elements.iter().filter(|e| e.depth == 1).all(|e| e.parent.is_some()));
+        assert!(fine
+            .elements
+            .iter()
+            .filter(|e| e.depth == 1)
+            .all(|e| e.parent.is_some()));
     }
 
     #[test]

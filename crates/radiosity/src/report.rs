@@ -153,7 +153,8 @@ impl Report {
         (0..3)
             .filter(|&c| t.emitted_power[c] > 0.0)
             .map(|c| {
-                (t.emitted_power[c] - t.absorbed_power[c] - t.escaped_power[c] - t.unshot_power[c]).abs()
+                (t.emitted_power[c] - t.absorbed_power[c] - t.escaped_power[c] - t.unshot_power[c])
+                    .abs()
                     / t.emitted_power[c]
             })
             .fold(0.0, f64::max)

@@ -5,7 +5,9 @@ use glam::DVec3;
 use radiosity::cornell::cornell_box;
 use radiosity::display::Shading;
 use radiosity::mesh::MeshOptions;
-use radiosity::pipeline::{render_elements, solve_scene, solve_scene_adaptive, Shaded, SolveSettings, Solved};
+use radiosity::pipeline::{
+    render_elements, solve_scene, solve_scene_adaptive, Shaded, SolveSettings, Solved,
+};
 use radiosity::progress::NoProgress;
 use radiosity::refine::RefineOptions;
 use radiosity::render::RenderOptions;
@@ -30,10 +32,14 @@ fn settings(elements: usize) -> SolveSettings {
 
 /// Mean relative error of per-polygon radiosity and of region means against the reference.
 fn errors(s: &Solved) -> (f64, f64) {
-    let reference: Value = serde_json::from_str(include_str!("reference/cornell_reference.json")).unwrap();
+    let reference: Value =
+        serde_json::from_str(include_str!("reference/cornell_reference.json")).unwrap();
     let report = Report::new("cornell", &s.mesh, &s.solution, "raycast");
     let mut poly = Vec::new();
-    for p in reference["per_polygon_area_averaged"]["polygons"].as_array().unwrap() {
+    for p in reference["per_polygon_area_averaged"]["polygons"]
+        .as_array()
+        .unwrap()
+    {
         let ours = report.object(p["name"].as_str().unwrap()).unwrap();
         for c in 0..3 {
             let want = p["radiosity_avg"][c].as_f64().unwrap();
@@ -54,14 +60,22 @@ fn errors(s: &Solved) -> (f64, f64) {
     let image = render_elements(&shaded, &camera, Shading::Smooth, false, &options).unwrap();
     let mut region = Vec::new();
     for r in reference["regions"].as_object().unwrap().values() {
-        let rect: Vec<u32> = r["rect_x0y0x1y1"].as_array().unwrap().iter().map(|v| v.as_u64().unwrap() as u32).collect();
+        let rect: Vec<u32> = r["rect_x0y0x1y1"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_u64().unwrap() as u32)
+            .collect();
         let ours = image.region_mean(rect[0], rect[1], rect[2], rect[3]);
         for c in 0..3 {
             let want = r["mean_radiance_rgb"][c].as_f64().unwrap();
             region.push((ours[c] - want).abs() / want);
         }
         if std::env::var("VERBOSE").is_ok() {
-            eprintln!("{} {:?} {:?}", r["surface_group"], ours, r["mean_radiance_rgb"]);
+            eprintln!(
+                "{} {:?} {:?}",
+                r["surface_group"], ours, r["mean_radiance_rgb"]
+            );
         }
     }
     let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
@@ -87,7 +101,10 @@ fn adaptive_beats_uniform_at_the_same_element_count() {
         }
         target = (target as f64 * n as f64 / m as f64) as usize;
     };
-    assert!(adaptive.mesh.elements.iter().any(|e| e.depth > 0), "nothing was refined");
+    assert!(
+        adaptive.mesh.elements.iter().any(|e| e.depth > 0),
+        "nothing was refined"
+    );
     let (ap, ar) = errors(&adaptive);
     let (up, ur) = errors(&uniform);
     eprintln!(
@@ -111,8 +128,12 @@ fn refined_mesh_renders_without_cracks() {
         ..Default::default()
     };
     let solved = solve_scene_adaptive(&scene, &settings(1500), &refine, &NoProgress).unwrap();
-    let hanging = radiosity::display::Conformity::find(&solved.mesh.vertices, &solved.mesh.elements);
-    assert!(hanging.hanging_count() > 0, "the test needs T-junctions to be meaningful");
+    let hanging =
+        radiosity::display::Conformity::find(&solved.mesh.vertices, &solved.mesh.elements);
+    assert!(
+        hanging.hanging_count() > 0,
+        "the test needs T-junctions to be meaningful"
+    );
     // From inside the box, looking at the back: every pixel sees a surface. The background
     // is a negative sentinel, so a single crack sample makes its pixel negative.
     let camera = Camera {
@@ -134,7 +155,14 @@ fn refined_mesh_renders_without_cracks() {
     };
     for shading in [Shading::Flat, Shading::Smooth] {
         let image = render_elements(&shaded, &camera, shading, false, &options).unwrap();
-        let cracks = image.pixels.iter().filter(|p| p.iter().any(|v| *v < 0.0)).count();
-        assert_eq!(cracks, 0, "{shading:?}: {cracks} pixels show the background through the mesh");
+        let cracks = image
+            .pixels
+            .iter()
+            .filter(|p| p.iter().any(|v| *v < 0.0))
+            .count();
+        assert_eq!(
+            cracks, 0,
+            "{shading:?}: {cracks} pixels show the background through the mesh"
+        );
     }
 }

@@ -17,12 +17,30 @@ fn furnace() -> Value {
 }
 
 const FACES: [(&str, [[f64; 3]; 4]); 6] = [
-    ("floor", [[0., 0., 1.], [1., 0., 1.], [1., 0., 0.], [0., 0., 0.]]),
-    ("ceiling", [[0., 1., 0.], [1., 1., 0.], [1., 1., 1.], [0., 1., 1.]]),
-    ("wall_x0", [[0., 0., 0.], [0., 1., 0.], [0., 1., 1.], [0., 0., 1.]]),
-    ("wall_x1", [[1., 0., 1.], [1., 1., 1.], [1., 1., 0.], [1., 0., 0.]]),
-    ("wall_z0", [[0., 0., 0.], [1., 0., 0.], [1., 1., 0.], [0., 1., 0.]]),
-    ("wall_z1", [[0., 1., 1.], [1., 1., 1.], [1., 0., 1.], [0., 0., 1.]]),
+    (
+        "floor",
+        [[0., 0., 1.], [1., 0., 1.], [1., 0., 0.], [0., 0., 0.]],
+    ),
+    (
+        "ceiling",
+        [[0., 1., 0.], [1., 1., 0.], [1., 1., 1.], [0., 1., 1.]],
+    ),
+    (
+        "wall_x0",
+        [[0., 0., 0.], [0., 1., 0.], [0., 1., 1.], [0., 0., 1.]],
+    ),
+    (
+        "wall_x1",
+        [[1., 0., 1.], [1., 1., 1.], [1., 1., 0.], [1., 0., 0.]],
+    ),
+    (
+        "wall_z0",
+        [[0., 0., 0.], [1., 0., 0.], [1., 1., 0.], [0., 1., 0.]],
+    ),
+    (
+        "wall_z1",
+        [[0., 1., 1.], [1., 1., 1.], [1., 0., 1.], [0., 0., 1.]],
+    ),
 ];
 
 /// The unit cube with inward-facing faces; `emits(face)` gives each face's exitance E.
@@ -52,7 +70,13 @@ fn cube(rho: f64, emits: impl Fn(&str) -> f64) -> Scene {
     }
 }
 
-fn run_with(scene: &Scene, mesh_opts: MeshOptions, solver: SolverKind, tol: f64, method: FormFactorMethod) -> (Mesh, Report) {
+fn run_with(
+    scene: &Scene,
+    mesh_opts: MeshOptions,
+    solver: SolverKind,
+    tol: f64,
+    method: FormFactorMethod,
+) -> (Mesh, Report) {
     let mesh = Mesh::build(scene, &mesh_opts).unwrap();
     let vis = Visibility::new(&mesh);
     let ff = method.engine(&mesh, &vis);
@@ -99,12 +123,26 @@ fn uniform_emission_gives_e_over_one_minus_rho_for_every_solver() {
                 for o in &report.objects {
                     for c in 0..3 {
                         let rel = (o.radiosity[c] - expected).abs() / expected;
-                        assert!(rel < 1e-6, "{solver} {} B={} expected {expected} ({} elements)", o.name, o.radiosity[c], mesh.len());
+                        assert!(
+                            rel < 1e-6,
+                            "{solver} {} B={} expected {expected} ({} elements)",
+                            o.name,
+                            o.radiosity[c],
+                            mesh.len()
+                        );
                     }
                 }
                 // Energy balance: all emitted power is absorbed, none escapes.
-                assert!(report.balance_error() < 1e-6, "{solver}: balance {}", report.balance_error());
-                assert!(report.totals.escaped_power.iter().all(|e| e.abs() < 1e-6 * report.totals.emitted_power[0]));
+                assert!(
+                    report.balance_error() < 1e-6,
+                    "{solver}: balance {}",
+                    report.balance_error()
+                );
+                assert!(report
+                    .totals
+                    .escaped_power
+                    .iter()
+                    .all(|e| e.abs() < 1e-6 * report.totals.emitted_power[0]));
             }
         }
     }
@@ -127,12 +165,20 @@ fn floor_emitting_cube_matches_the_six_by_six_system() {
         // face's size over its distance to the nearest other surface); on the adjacent-face
         // kernel, which has a logarithmic singularity along the shared edge, such a rule
         // is accurate to ~1e-4 relative, and B inherits it.
-        for (method, tol) in [(FormFactorMethod::AnalyticPolygon, 2e-7), (FormFactorMethod::Raycast, 1e-4)] {
+        for (method, tol) in [
+            (FormFactorMethod::AnalyticPolygon, 2e-7),
+            (FormFactorMethod::Raycast, 1e-4),
+        ] {
             let (_, report) = run_with(&scene, per_face(1, 1), SolverKind::Direct, 1e-9, method);
             for o in &report.objects {
                 let want = expected[&o.name].as_f64().unwrap();
                 let rel = (o.radiosity[0] - want).abs() / want;
-                assert!(rel < tol, "{method} rho {rho} {}: B={} expected {want} (rel {rel:e})", o.name, o.radiosity[0]);
+                assert!(
+                    rel < tol,
+                    "{method} rho {rho} {}: B={} expected {want} (rel {rel:e})",
+                    o.name,
+                    o.radiosity[0]
+                );
             }
             assert!(report.balance_error() < 1e-6);
         }
@@ -161,9 +207,19 @@ fn floor_emitting_cube_fine_mesh_approaches_the_continuous_answer() {
             // so this still demands most of that gap be closed).
             let err = (o.radiosity[0] - want).abs();
             let tol = 4.0 * se + 3e-3 * want;
-            assert!(err < tol, "rho {rho} {}: B={} continuous {want} ± {se} ({} elements)", o.name, o.radiosity[0], mesh.len());
+            assert!(
+                err < tol,
+                "rho {rho} {}: B={} continuous {want} ± {se} ({} elements)",
+                o.name,
+                o.radiosity[0],
+                mesh.len()
+            );
             let gap = (coarse[&o.name].as_f64().unwrap() - want).abs();
-            assert!(err < 0.5 * gap + 4.0 * se, "{}: the fine mesh should beat one element per face", o.name);
+            assert!(
+                err < 0.5 * gap + 4.0 * se,
+                "{}: the fine mesh should beat one element per face",
+                o.name
+            );
         }
     }
 }

@@ -10,7 +10,11 @@ use radiosity::mesh::{Mesh, MeshOptions};
 use serde_json::Value;
 
 fn vec3(v: &Value) -> DVec3 {
-    DVec3::new(v[0].as_f64().unwrap(), v[1].as_f64().unwrap(), v[2].as_f64().unwrap())
+    DVec3::new(
+        v[0].as_f64().unwrap(),
+        v[1].as_f64().unwrap(),
+        v[2].as_f64().unwrap(),
+    )
 }
 
 #[test]
@@ -24,7 +28,8 @@ fn direct_irradiance_at_reference_points_matches_mitsuba() {
     // The light split into 64×64 sub-areas, each weighted by its exact form factor and its
     // visibility from the point (Wallace et al. 1989 with a fine source sampling).
     let subs = subdivide(&lv, 64);
-    let reference: Value = serde_json::from_str(include_str!("reference/cornell_reference.json")).unwrap();
+    let reference: Value =
+        serde_json::from_str(include_str!("reference/cornell_reference.json")).unwrap();
     for p in reference["points"]["values"].as_array().unwrap() {
         let x = vec3(&p["point_mm"]) / 1000.0;
         let n = vec3(&p["normal"]);

@@ -14,7 +14,9 @@ use std::sync::OnceLock;
 
 fn reference() -> &'static Value {
     static R: OnceLock<Value> = OnceLock::new();
-    R.get_or_init(|| serde_json::from_str(include_str!("reference/cornell_reference.json")).unwrap())
+    R.get_or_init(|| {
+        serde_json::from_str(include_str!("reference/cornell_reference.json")).unwrap()
+    })
 }
 
 fn solve_with(solver: SolverKind, tolerance: f64) -> Solved {
@@ -43,9 +45,14 @@ fn report(s: &Solved) -> Report {
 fn per_polygon_radiosity_matches_mitsuba_within_3_percent() {
     let report = report(direct());
     let mut worst = (0.0f64, String::new());
-    for poly in reference()["per_polygon_area_averaged"]["polygons"].as_array().unwrap() {
+    for poly in reference()["per_polygon_area_averaged"]["polygons"]
+        .as_array()
+        .unwrap()
+    {
         let name = poly["name"].as_str().unwrap();
-        let ours = report.object(name).unwrap_or_else(|| panic!("no object {name}"));
+        let ours = report
+            .object(name)
+            .unwrap_or_else(|| panic!("no object {name}"));
         for c in 0..3 {
             let want = poly["radiosity_avg"][c].as_f64().unwrap();
             let se = poly["radiosity_avg_stderr"][c].as_f64().unwrap();
@@ -55,7 +62,10 @@ fn per_polygon_radiosity_matches_mitsuba_within_3_percent() {
             let err = (ours.radiosity[c] - want).abs();
             let rel = err / want;
             if rel > worst.0 {
-                worst = (rel, format!("{name}[{c}] ours {} ref {want}", ours.radiosity[c]));
+                worst = (
+                    rel,
+                    format!("{name}[{c}] ours {} ref {want}", ours.radiosity[c]),
+                );
             }
             assert!(
                 err <= 0.03 * want + 3.0 * se,
@@ -65,7 +75,11 @@ fn per_polygon_radiosity_matches_mitsuba_within_3_percent() {
             );
         }
     }
-    eprintln!("worst per-polygon relative error: {:.3} % ({})", 100.0 * worst.0, worst.1);
+    eprintln!(
+        "worst per-polygon relative error: {:.3} % ({})",
+        100.0 * worst.0,
+        worst.1
+    );
 }
 
 #[test]
@@ -73,7 +87,11 @@ fn energy_balance_holds() {
     let r = report(direct());
     // Tolerance 1e-6: the direct solver's residual is ~1e-15, and emitted = absorbed +
     // escaped is then exact bookkeeping of where each patch's power went.
-    assert!(r.balance_error() < 1e-6, "balance error {}", r.balance_error());
+    assert!(
+        r.balance_error() < 1e-6,
+        "balance error {}",
+        r.balance_error()
+    );
     // The open front of the box lets light escape: some, but less than was emitted.
     for c in 0..3 {
         assert!(r.totals.escaped_power[c] > 0.0);
@@ -84,8 +102,18 @@ fn energy_balance_holds() {
 #[test]
 fn iterative_solvers_agree_with_direct_to_their_tolerance() {
     let d = direct();
-    let total: f64 = d.solution.radiosity.iter().zip(&d.mesh.elements).map(|(b, e)| (b[0] + b[1] + b[2]) * e.area).sum();
-    for solver in [SolverKind::Jacobi, SolverKind::GaussSeidel, SolverKind::Progressive] {
+    let total: f64 = d
+        .solution
+        .radiosity
+        .iter()
+        .zip(&d.mesh.elements)
+        .map(|(b, e)| (b[0] + b[1] + b[2]) * e.area)
+        .sum();
+    for solver in [
+        SolverKind::Jacobi,
+        SolverKind::GaussSeidel,
+        SolverKind::Progressive,
+    ] {
         let tol = 1e-4;
         let s = solve_with(solver, tol);
         // Power-weighted difference relative to the total radiant power: the matrix
@@ -98,10 +126,20 @@ fn iterative_solvers_agree_with_direct_to_their_tolerance() {
             .iter()
             .zip(&d.solution.radiosity)
             .zip(&d.mesh.elements)
-            .map(|((a, b), e)| ((a[0] - b[0]).abs() + (a[1] - b[1]).abs() + (a[2] - b[2]).abs()) * e.area)
+            .map(|((a, b), e)| {
+                ((a[0] - b[0]).abs() + (a[1] - b[1]).abs() + (a[2] - b[2]).abs()) * e.area
+            })
             .sum();
-        assert!(diff / total < 10.0 * tol, "{solver}: relative difference {}", diff / total);
-        assert!(s.solution.stats.residual <= tol, "{solver} stopped at {}", s.solution.stats.residual);
+        assert!(
+            diff / total < 10.0 * tol,
+            "{solver}: relative difference {}",
+            diff / total
+        );
+        assert!(
+            s.solution.stats.residual <= tol,
+            "{solver} stopped at {}",
+            s.solution.stats.residual
+        );
         let r = report(&s);
         // Progressive bookkeeping is exact whatever the tolerance: emitted = absorbed +
         // escaped + unshot.
@@ -130,7 +168,12 @@ fn region_means_of_a_256_render_match_mitsuba_within_3_percent() {
     };
     let image = render_elements(&shaded, &camera, Shading::Smooth, false, &options).unwrap();
     for (name, region) in reference()["regions"].as_object().unwrap() {
-        let r: Vec<u32> = region["rect_x0y0x1y1"].as_array().unwrap().iter().map(|v| v.as_u64().unwrap() as u32).collect();
+        let r: Vec<u32> = region["rect_x0y0x1y1"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_u64().unwrap() as u32)
+            .collect();
         let ours = image.region_mean(r[0], r[1], r[2], r[3]);
         for c in 0..3 {
             let want = region["mean_radiance_rgb"][c].as_f64().unwrap();

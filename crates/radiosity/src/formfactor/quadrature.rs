@@ -46,7 +46,10 @@ pub fn element_points(corners: &[DVec3], centroid: DVec3, n: usize, out: &mut Ve
             let mut total = 0.0;
             for &(u, wu) in &rule {
                 for &(v, wv) in &rule {
-                    let p = (1.0 - u) * (1.0 - v) * a + u * (1.0 - v) * b + u * v * c + (1.0 - u) * v * d;
+                    let p = (1.0 - u) * (1.0 - v) * a
+                        + u * (1.0 - v) * b
+                        + u * v * c
+                        + (1.0 - u) * v * d;
                     let du = (1.0 - v) * (b - a) + v * (c - d);
                     let dv = (1.0 - u) * (d - a) + u * (c - b);
                     let w = wu * wv * du.cross(dv).length();

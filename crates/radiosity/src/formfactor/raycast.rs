@@ -64,7 +64,10 @@ struct SourcePatch {
 impl SourcePatch {
     fn new(vertices: Vec<DVec3>, normal: DVec3, centre: DVec3, params: &RaycastParams) -> Self {
         let centroid = |v: &[DVec3]| v.iter().copied().sum::<DVec3>() / v.len() as f64;
-        let radius = vertices.iter().map(|v| v.distance(centre)).fold(0.0, f64::max);
+        let radius = vertices
+            .iter()
+            .map(|v| v.distance(centre))
+            .fold(0.0, f64::max);
         let probes = subdivide(&vertices, params.probe.max(1))
             .iter()
             .map(|s| centroid(s))
@@ -110,7 +113,14 @@ impl<'a> Raycast<'a> {
         let sources = mesh
             .patches
             .iter()
-            .map(|p| SourcePatch::new(p.polygon.vertices().to_vec(), p.polygon.normal(), p.polygon.centroid(), &params))
+            .map(|p| {
+                SourcePatch::new(
+                    p.polygon.vertices().to_vec(),
+                    p.polygon.normal(),
+                    p.polygon.centroid(),
+                    &params,
+                )
+            })
             .collect();
         let element_orders: Vec<usize> = mesh
             .elements
@@ -120,7 +130,9 @@ impl<'a> Raycast<'a> {
                 let mut size: f64 = 0.0;
                 for i in 0..c.len() {
                     for j in i + 1..c.len() {
-                        size = size.max(mesh.vertices[c[i] as usize].distance(mesh.vertices[c[j] as usize]));
+                        size = size.max(
+                            mesh.vertices[c[i] as usize].distance(mesh.vertices[c[j] as usize]),
+                        );
                     }
                 }
                 // Nearest other surface that can exchange light with this element.
@@ -130,15 +142,20 @@ impl<'a> Raycast<'a> {
                     .enumerate()
                     .filter(|(s, poly)| {
                         *s != e.surface as usize
-                            && poly.vertices().iter().any(|v| (*v - e.centre).dot(e.normal) > 0.0)
-                            && c.iter().any(|&k| poly.plane_distance(mesh.vertices[k as usize]) > 0.0)
+                            && poly
+                                .vertices()
+                                .iter()
+                                .any(|v| (*v - e.centre).dot(e.normal) > 0.0)
+                            && c.iter()
+                                .any(|&k| poly.plane_distance(mesh.vertices[k as usize]) > 0.0)
                     })
                     .map(|(_, poly)| poly.distance_to(e.centre))
                     .fold(f64::INFINITY, f64::min);
                 if distance <= 1e-9 * size {
                     params.max_order
                 } else {
-                    ((params.quality * size / distance).ceil() as usize).clamp(1, params.max_order.max(1))
+                    ((params.quality * size / distance).ceil() as usize)
+                        .clamp(1, params.max_order.max(1))
                 }
             })
             .collect();
@@ -147,7 +164,11 @@ impl<'a> Raycast<'a> {
             .iter()
             .zip(&element_orders)
             .map(|(e, &order)| {
-                let verts: Vec<DVec3> = e.corners.iter().map(|&c| mesh.vertices[c as usize]).collect();
+                let verts: Vec<DVec3> = e
+                    .corners
+                    .iter()
+                    .map(|&c| mesh.vertices[c as usize])
+                    .collect();
                 let mut points = Vec::with_capacity(order * order);
                 element_points(&verts, e.centre, order, &mut points);
                 let visibility = if order <= 2 {
@@ -164,7 +185,11 @@ impl<'a> Raycast<'a> {
             .elements
             .iter()
             .map(|e| {
-                let vertices = e.corners.iter().map(|&c| mesh.vertices[c as usize]).collect();
+                let vertices = e
+                    .corners
+                    .iter()
+                    .map(|&c| mesh.vertices[c as usize])
+                    .collect();
                 SourcePatch::new(vertices, e.normal, e.centre, &params)
             })
             .collect();
@@ -250,7 +275,9 @@ impl Raycast<'_> {
         // Whole-element culls: the source entirely behind the element's plane, or the
         // element entirely behind the source's plane.
         let corners = || e.corners.iter().map(|&c| self.mesh.vertices[c as usize]);
-        if s.vertices.iter().all(|v| (*v - e.centre).dot(e.normal) <= 1e-12 * s.radius)
+        if s.vertices
+            .iter()
+            .all(|v| (*v - e.centre).dot(e.normal) <= 1e-12 * s.radius)
             || corners().all(|c| (c - s.centre).dot(s.normal) <= 1e-12 * s.radius)
         {
             return 0.0;

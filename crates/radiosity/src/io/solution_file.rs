@@ -101,7 +101,10 @@ impl SolutionFile {
     }
 
     pub fn vertices(&self) -> Vec<DVec3> {
-        self.vertices.iter().map(|v| DVec3::from_array(*v)).collect()
+        self.vertices
+            .iter()
+            .map(|v| DVec3::from_array(*v))
+            .collect()
     }
 
     /// Radiosity for display, with ρ_e · ambient added when asked.
@@ -136,10 +139,11 @@ impl SolutionFile {
             path: path.to_path_buf(),
             source,
         })?;
-        let file: SolutionFile = serde_json::from_str(&text).map_err(|source| SolutionFileError::Parse {
-            path: path.to_path_buf(),
-            source,
-        })?;
+        let file: SolutionFile =
+            serde_json::from_str(&text).map_err(|source| SolutionFileError::Parse {
+                path: path.to_path_buf(),
+                source,
+            })?;
         let invalid = |message: String| SolutionFileError::Invalid {
             path: path.to_path_buf(),
             message,
@@ -148,21 +152,37 @@ impl SolutionFile {
             return Err(invalid(format!("unknown format '{}'", file.format)));
         }
         if file.version != FORMAT_VERSION {
-            return Err(invalid(format!("format version {} is not supported (expected {FORMAT_VERSION})", file.version)));
+            return Err(invalid(format!(
+                "format version {} is not supported (expected {FORMAT_VERSION})",
+                file.version
+            )));
         }
         let n = file.elements.len();
         if file.radiosity.len() != n || file.irradiance.len() != n {
-            return Err(invalid(format!("{n} elements but {} radiosity values", file.radiosity.len())));
+            return Err(invalid(format!(
+                "{n} elements but {} radiosity values",
+                file.radiosity.len()
+            )));
         }
         for (i, e) in file.elements.iter().enumerate() {
             if e.corners.len() < 3 || e.corners.iter().any(|&c| c as usize >= file.vertices.len()) {
-                return Err(invalid(format!("element {i} refers to a vertex that does not exist")));
+                return Err(invalid(format!(
+                    "element {i} refers to a vertex that does not exist"
+                )));
             }
             if e.surface as usize >= file.surfaces.len() {
-                return Err(invalid(format!("element {i} refers to surface {} that does not exist", e.surface)));
+                return Err(invalid(format!(
+                    "element {i} refers to surface {} that does not exist",
+                    e.surface
+                )));
             }
         }
-        let finite = file.vertices.iter().flatten().chain(file.radiosity.iter().flatten()).all(|x| x.is_finite());
+        let finite = file
+            .vertices
+            .iter()
+            .flatten()
+            .chain(file.radiosity.iter().flatten())
+            .all(|x| x.is_finite());
         if !finite {
             return Err(invalid("non-finite vertex or radiosity value".into()));
         }

@@ -16,7 +16,10 @@ pub fn solve(t: &Transport, _options: &SolveOptions) -> (Vec<[f64; 3]>, usize, f
     let m = mesh.patches.len();
     let matrix = t.patch_matrix();
     let lus: Vec<_> = (0..3)
-        .map(|c| Mat::<f64>::from_fn(m, m, |i, j| (i == j) as u8 as f64 - matrix[c][i * m + j]).partial_piv_lu())
+        .map(|c| {
+            Mat::<f64>::from_fn(m, m, |i, j| (i == j) as u8 as f64 - matrix[c][i * m + j])
+                .partial_piv_lu()
+        })
         .collect();
     // Spreads a patch-level solve of the element residual r into an element correction:
     // δ̄ = (I − M)⁻¹ r̄, δ_e = r_e + ρ_e Σ_q F_{e→q} δ̄_q (full rows, near summed back).
@@ -48,9 +51,17 @@ pub fn solve(t: &Transport, _options: &SolveOptions) -> (Vec<[f64; 3]>, usize, f
     let mut steps = 0;
     for _ in 0..50 {
         let next = t.apply(&b);
-        let r: Vec<[f64; 3]> = next.iter().zip(&b).map(|(n, x)| std::array::from_fn(|c| n[c] - x[c])).collect();
+        let r: Vec<[f64; 3]> = next
+            .iter()
+            .zip(&b)
+            .map(|(n, x)| std::array::from_fn(|c| n[c] - x[c]))
+            .collect();
         let delta = correct(&r);
-        let candidate: Vec<[f64; 3]> = b.iter().zip(&delta).map(|(x, d)| std::array::from_fn(|c| x[c] + d[c])).collect();
+        let candidate: Vec<[f64; 3]> = b
+            .iter()
+            .zip(&delta)
+            .map(|(x, d)| std::array::from_fn(|c| x[c] + d[c]))
+            .collect();
         let res = t.residual(&candidate);
         steps += 1;
         if res >= residual {

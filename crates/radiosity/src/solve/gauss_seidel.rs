@@ -7,7 +7,11 @@ use super::{SolveOptions, Transport};
 use crate::progress::Progress;
 
 /// Returns (B per element, iterations, relative residual).
-pub fn solve(t: &Transport, options: &SolveOptions, progress: &dyn Progress) -> (Vec<[f64; 3]>, usize, f64) {
+pub fn solve(
+    t: &Transport,
+    options: &SolveOptions,
+    progress: &dyn Progress,
+) -> (Vec<[f64; 3]>, usize, f64) {
     let mesh = t.mesh;
     let mut b = t.exitance();
     let mut bp = t.patch_means(&b);

@@ -5,7 +5,11 @@ use super::{SolveOptions, Transport};
 use crate::progress::Progress;
 
 /// Returns (B per element, iterations, relative residual).
-pub fn solve(t: &Transport, options: &SolveOptions, progress: &dyn Progress) -> (Vec<[f64; 3]>, usize, f64) {
+pub fn solve(
+    t: &Transport,
+    options: &SolveOptions,
+    progress: &dyn Progress,
+) -> (Vec<[f64; 3]>, usize, f64) {
     let mut b = t.exitance();
     let mut residual = t.residual(&b);
     let mut iterations = 0;

@@ -127,7 +127,9 @@ pub enum SolveError {
     },
     #[error("tolerance must be positive and finite, got {0}")]
     BadTolerance(f64),
-    #[error("the solution diverged (non-finite radiosity); check that every reflectance is below 1")]
+    #[error(
+        "the solution diverged (non-finite radiosity); check that every reflectance is below 1"
+    )]
     Diverged,
 }
 
@@ -244,7 +246,9 @@ pub fn solve(
             let (n, m) = (mesh.elements.len(), mesh.patches.len());
             let needed = CouplingMatrix::bytes_for(n, m)
                 + match kind {
-                    SolverKind::Direct => 2 * 8 * (m as u128) * (m as u128) + 3 * 8 * (m as u128) * (m as u128),
+                    SolverKind::Direct => {
+                        2 * 8 * (m as u128) * (m as u128) + 3 * 8 * (m as u128) * (m as u128)
+                    }
                     _ => 0,
                 };
             check_memory(kind, needed, options.memory_limit, n, m)?;
@@ -274,7 +278,13 @@ pub fn solve(
     Ok(solution)
 }
 
-fn check_memory(kind: SolverKind, needed: u128, limit: u64, n: usize, m: usize) -> Result<(), SolveError> {
+fn check_memory(
+    kind: SolverKind,
+    needed: u128,
+    limit: u64,
+    n: usize,
+    m: usize,
+) -> Result<(), SolveError> {
     if needed > limit as u128 {
         return Err(SolveError::OutOfMemory {
             solver: kind,
@@ -306,7 +316,11 @@ impl<'a> Transport<'a> {
 
     /// Emitted exitance E per element.
     pub fn exitance(&self) -> Vec<[f64; 3]> {
-        self.mesh.elements.iter().map(|e| self.mesh.exitance(e)).collect()
+        self.mesh
+            .elements
+            .iter()
+            .map(|e| self.mesh.exitance(e))
+            .collect()
     }
 
     /// Area-weighted mean of per-element values over each patch.
@@ -348,7 +362,10 @@ impl<'a> Transport<'a> {
     /// H = T(B) for every element, in parallel.
     pub fn irradiance(&self, b: &[[f64; 3]]) -> Vec<[f64; 3]> {
         let bp = self.patch_means(b);
-        (0..b.len()).into_par_iter().map(|e| self.irradiance_at(e, &bp, b)).collect()
+        (0..b.len())
+            .into_par_iter()
+            .map(|e| self.irradiance_at(e, &bp, b))
+            .collect()
     }
 
     /// B' = E + ρ T(B).

@@ -115,7 +115,10 @@ impl Progressive {
         let receivers = &near.per_patch[p];
         if receivers.is_empty() {
             ff.column(p, &mut far);
-            return Column { far, near: Vec::new() };
+            return Column {
+                far,
+                near: Vec::new(),
+            };
         }
         far.par_iter_mut().enumerate().for_each(|(e, f)| {
             if receivers.binary_search(&(e as u32)).is_err() {
@@ -133,12 +136,20 @@ impl Progressive {
                 (e, row)
             })
             .collect();
-        Column { far, near: near_rows }
+        Column {
+            far,
+            near: near_rows,
+        }
     }
 
     /// Shoots the patch with the largest unshot power; returns false when nothing is left.
     pub fn shoot(&mut self, mesh: &Mesh, ff: &dyn FormFactors) -> bool {
-        let Some((p, &power)) = self.patch_power.iter().enumerate().max_by(|a, b| a.1.total_cmp(b.1)) else {
+        let Some((p, &power)) = self
+            .patch_power
+            .iter()
+            .enumerate()
+            .max_by(|a, b| a.1.total_cmp(b.1))
+        else {
             return false;
         };
         if power <= 0.0 {
@@ -159,7 +170,10 @@ impl Progressive {
 
         // What patch p shoots: ω·u per element, and its area-weighted mean.
         let sources = mesh.patches[p].elements.clone();
-        let area_p: f64 = sources.clone().map(|e| mesh.elements[e as usize].area).sum();
+        let area_p: f64 = sources
+            .clone()
+            .map(|e| mesh.elements[e as usize].area)
+            .sum();
         let mut shot = Vec::with_capacity(sources.len());
         let mut mean = [0.0; 3];
         let mut shot_power = [0.0; 3];
@@ -205,7 +219,12 @@ impl Progressive {
             self.escaped[c] += shot_power[c] - landed[c];
         }
         // Keep the column while the cache has room.
-        let bytes = 4 * column.far.len() + column.near.iter().map(|(_, r)| 8 + 4 * r.len()).sum::<usize>();
+        let bytes = 4 * column.far.len()
+            + column
+                .near
+                .iter()
+                .map(|(_, r)| 8 + 4 * r.len())
+                .sum::<usize>();
         if cached || self.cache_bytes + bytes <= self.cache_limit_bytes {
             if !cached {
                 self.cache_bytes += bytes;
@@ -244,7 +263,8 @@ impl Progressive {
                 let mut m = [0.0; 3];
                 for e in p.elements.clone() {
                     for c in 0..3 {
-                        m[c] += shot_total[e as usize][c] * refined.elements[e as usize].area / area;
+                        m[c] +=
+                            shot_total[e as usize][c] * refined.elements[e as usize].area / area;
                     }
                 }
                 m
@@ -255,7 +275,9 @@ impl Progressive {
             .par_iter()
             .enumerate()
             .map(|(i, e)| match parent(e) {
-                Some(p) if old.elements[p].depth == e.depth => (self.radiosity[p], self.irradiance[p]),
+                Some(p) if old.elements[p].depth == e.depth => {
+                    (self.radiosity[p], self.irradiance[p])
+                }
                 _ => {
                     let mut h = [0.0; 3];
                     for (q, s) in shot_means.iter().enumerate() {
@@ -315,7 +337,9 @@ pub fn solve(
 ) -> Result<Solution, SolveError> {
     let start = Instant::now();
     let mut state = Progressive::new(mesh, options);
-    let cap = options.max_shots.unwrap_or_else(|| 100 * mesh.patches.len().max(1));
+    let cap = options
+        .max_shots
+        .unwrap_or_else(|| 100 * mesh.patches.len().max(1));
     progress.start("progressive", cap as u64);
     while state.shots() < cap && state.unshot_fraction() > options.tolerance {
         if !state.shoot(mesh, ff) {
