@@ -270,7 +270,10 @@ fn bad_sequences_fail_with_a_clear_error() {
     assert!(e.to_string().contains("2.5"));
     s.solve.overshoot = 1.0;
     s.solve.tolerance = f64::NAN;
-    assert!(matches!(err(&s, options(vec![0, 1])), SequenceError::BadTolerance(_)));
+    assert!(matches!(
+        err(&s, options(vec![0, 1])),
+        SequenceError::BadTolerance(_)
+    ));
 }
 
 #[test]
