@@ -60,21 +60,14 @@ pub fn solve_scene(
 /// [`crate::refine`]), re-solving after each pass, until nothing needs splitting, the depth
 /// limit is reached or the element budget `refine.max_elements` is used.
 ///
-/// The coarse mesh has a quarter of `settings.mesh.elements` (twice the edge length) and
-/// half the patch subdivision, so its patches match the uniform mesh's in size.
+/// The coarse mesh is [`coarse_mesh_options`] of `settings.mesh`.
 pub fn solve_scene_adaptive(
     scene: &Scene,
     settings: &SolveSettings,
     refine: &RefineOptions,
     progress: &dyn Progress,
 ) -> Result<Solved, PipelineError> {
-    let mut coarse = settings.mesh;
-    coarse.elements = (coarse.elements / 2).max(1);
-    coarse.max_element_size = coarse
-        .max_element_size
-        .map(|h| std::f64::consts::SQRT_2 * h);
-    coarse.patch_subdivision =
-        ((coarse.patch_subdivision as f64 / std::f64::consts::SQRT_2).round() as u32).max(1);
+    let coarse = coarse_mesh_options(&settings.mesh);
     let mut mesh = Mesh::build(scene, &coarse)?;
     loop {
         let solution = {
@@ -91,6 +84,19 @@ pub fn solve_scene_adaptive(
             });
         }
         mesh = crate::refine::refine(&mesh, &marked);
+    }
+}
+
+/// The mesh adaptive refinement starts from: half the elements of `uniform` (edges √2
+/// longer) and its patch subdivision divided by √2 (rounded), so the patches keep about the
+/// uniform mesh's size while refinement has half the element budget to spend where the
+/// radiosity changes fast.
+pub fn coarse_mesh_options(uniform: &MeshOptions) -> MeshOptions {
+    let r = std::f64::consts::SQRT_2;
+    MeshOptions {
+        elements: (uniform.elements / 2).max(1),
+        max_element_size: uniform.max_element_size.map(|h| r * h),
+        patch_subdivision: ((uniform.patch_subdivision as f64 / r).round() as u32).max(1),
     }
 }
 

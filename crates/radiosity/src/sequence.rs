@@ -19,7 +19,7 @@
 
 use crate::display::Shading;
 use crate::formfactor::Visibility;
-use crate::mesh::{Mesh, MeshOptions};
+use crate::mesh::Mesh;
 use crate::pipeline::{render_elements, PipelineError, Shaded, SolveSettings};
 use crate::progress::Progress;
 use crate::refine::RefineOptions;
@@ -42,7 +42,7 @@ pub struct SequenceOptions {
     /// Display B_e + ρ_e·ambient instead of the plain partial solution.
     pub ambient: bool,
     /// Refine the mesh adaptively between frames, starting from the coarse mesh
-    /// ([`coarse_mesh_options`]).
+    /// ([`crate::pipeline::coarse_mesh_options`]).
     pub adaptive: Option<RefineOptions>,
 }
 
@@ -183,17 +183,6 @@ fn check_frames(frames: &[usize]) -> Result<(), SequenceError> {
     Ok(())
 }
 
-/// The mesh adaptive refinement starts from: a quarter of the elements (twice the edge
-/// length) and half the patch subdivision of `uniform`, as in
-/// [`crate::pipeline::solve_scene_adaptive`], so its patches match the uniform mesh's.
-pub fn coarse_mesh_options(uniform: &MeshOptions) -> MeshOptions {
-    MeshOptions {
-        elements: (uniform.elements / 4).max(1),
-        max_element_size: uniform.max_element_size.map(|h| 2.0 * h),
-        patch_subdivision: (uniform.patch_subdivision / 2).max(1),
-    }
-}
-
 /// Solves `scene` by progressive refinement and renders a frame at each requested shot count.
 ///
 /// Shooting stops at the last requested count or when the unshot power falls below
@@ -217,7 +206,7 @@ pub fn run(
         return Err(SequenceError::BadTolerance(tolerance));
     }
     let mesh_options = match options.adaptive {
-        Some(_) => coarse_mesh_options(&settings.mesh),
+        Some(_) => crate::pipeline::coarse_mesh_options(&settings.mesh),
         None => settings.mesh,
     };
     let started = Instant::now();

@@ -217,7 +217,7 @@ fn adaptive_sequence_grows_the_mesh_and_keeps_the_shot_counts() {
     let counts: Vec<usize> = seq.frames.iter().map(|f| f.record.elements).collect();
     let coarse = Mesh::build(
         &cornell_box(),
-        &radiosity::sequence::coarse_mesh_options(&settings.mesh),
+        &radiosity::pipeline::coarse_mesh_options(&settings.mesh),
     )
     .unwrap();
     assert_eq!(counts[0], coarse.len(), "starts from the coarse mesh");
