@@ -260,25 +260,11 @@ pub fn prepare_output_dir(dir: &Path) -> Result<()> {
 
 /// The camera: flags over the scene's camera over one framing the scene.
 fn camera(args: &ViewArgs, scene: &Scene) -> Result<Camera> {
-    let base = scene.camera.unwrap_or_else(|| scene.camera_or_default());
-    let camera = Camera {
-        eye: args.eye.unwrap_or(base.eye),
-        target: args.target.unwrap_or(base.target),
-        up: args.up.unwrap_or(base.up),
-        fov_deg: args.fov.unwrap_or(base.fov_deg),
-    };
-    if !(camera.fov_deg > 0.0 && camera.fov_deg < 180.0) {
-        bail!(
-            "--fov must be between 0 and 180 degrees, got {}",
-            camera.fov_deg
-        );
-    }
-    let look = camera.target - camera.eye;
-    if look.length() < 1e-12 {
-        bail!("camera eye and target coincide");
-    }
-    if look.normalize().cross(camera.up).length() < 1e-9 {
-        bail!("camera up direction is parallel to the viewing direction");
-    }
-    Ok(camera)
+    crate::commands::camera_with(
+        args.eye,
+        args.target,
+        args.up,
+        args.fov,
+        scene.camera_or_default(),
+    )
 }

@@ -269,11 +269,23 @@ fn camera_from(
     let base = scene_camera
         .or_else(|| scene.map(Scene::camera_or_default))
         .unwrap_or_default();
+    camera_with(args.eye, args.target, args.up, args.fov, base)
+}
+
+/// `base` with the given flags applied, checked: a field of view in (0°, 180°), distinct
+/// eye and target, and an up direction not parallel to the view.
+pub(crate) fn camera_with(
+    eye: Option<glam::DVec3>,
+    target: Option<glam::DVec3>,
+    up: Option<glam::DVec3>,
+    fov: Option<f64>,
+    base: Camera,
+) -> Result<Camera> {
     let camera = Camera {
-        eye: args.eye.unwrap_or(base.eye),
-        target: args.target.unwrap_or(base.target),
-        up: args.up.unwrap_or(base.up),
-        fov_deg: args.fov.unwrap_or(base.fov_deg),
+        eye: eye.unwrap_or(base.eye),
+        target: target.unwrap_or(base.target),
+        up: up.unwrap_or(base.up),
+        fov_deg: fov.unwrap_or(base.fov_deg),
     };
     if !(camera.fov_deg > 0.0 && camera.fov_deg < 180.0) {
         bail!(
