@@ -97,6 +97,11 @@ fn run_solve(scene: &Scene, settings: &SolveSettings, args: &SolveArgs) -> Resul
             refine.threshold = x;
         }
         if let Some(d) = args.max_depth {
+            if d > 8 {
+                bail!(
+                    "--max-depth must be at most 8 (each level quadruples the elements), got {d}"
+                );
+            }
             refine.max_depth = d;
         }
         solve_scene_adaptive(scene, settings, &refine, &bars)?

@@ -216,7 +216,7 @@ pub fn run(
     let mut state = Progressive::new(&mesh, &settings.solve);
     // Refinement budget when none is given: the element count of the uniform mesh.
     let refine = options.adaptive.map(|r| RefineOptions {
-        max_elements: r.max_elements.or(Some(4 * mesh.len())),
+        max_elements: r.max_elements.or(Some(settings.mesh.elements)),
         ..r
     });
     let last = options.frames[options.frames.len() - 1];
