@@ -825,6 +825,11 @@ pub struct Hemicube<'a> {
     patch_area: Vec<f64>,
     /// Distance (m) hemi-cubes are lifted off their surface: 10⁻⁷ of the scene's diagonal.
     offset: f64,
+    /// The near field ([`super::NearField`] with κ = 1), whose patches are resolved into
+    /// their elements.
+    near: super::NearField,
+    /// Near-field links per element (source element, F_{e→e'}), rendered on first use.
+    links: Vec<std::sync::OnceLock<Vec<(u32, f64)>>>,
 }
 
 impl<'a> Hemicube<'a> {
@@ -862,7 +867,64 @@ impl<'a> Hemicube<'a> {
             elements,
             patch_area: mesh.patches.iter().map(|p| mesh.patch_area(p)).collect(),
             offset: 1e-7 * diagonal.max(f64::MIN_POSITIVE),
+            near: super::NearField::new(mesh, 1.0),
+            links: (0..mesh.elements.len())
+                .map(|_| std::sync::OnceLock::new())
+                .collect(),
         }
+    }
+
+    /// One hemi-cube at element `element` over every patch, except that its near patches are
+    /// drawn as their elements: the element-to-element links F_{e→e'} of the near field.
+    fn near_links(&self, element: usize) -> &[(u32, f64)] {
+        self.links[element].get_or_init(|| {
+            let near = &self.near.per_element[element];
+            if near.is_empty() {
+                return Vec::new();
+            }
+            let m = self.mesh.patches.len() as u32;
+            let mut set = PolySet::default();
+            let mut sources = Vec::new();
+            let mut corners = Vec::with_capacity(4);
+            for (i, p) in self.mesh.patches.iter().enumerate() {
+                if near.binary_search(&(i as u32)).is_ok() {
+                    for s in p.elements.clone() {
+                        let el = &self.mesh.elements[s as usize];
+                        corners.clear();
+                        corners.extend(el.corners.iter().map(|&c| self.mesh.vertices[c as usize]));
+                        set.push(&corners, el.normal, el.surface, m + sources.len() as u32);
+                        sources.push(s);
+                    }
+                } else {
+                    set.push(
+                        p.polygon.vertices(),
+                        p.polygon.normal(),
+                        p.surface,
+                        i as u32,
+                    );
+                }
+            }
+            let e = &self.mesh.elements[element];
+            let frame = Frame::new(
+                e.centre + e.normal * self.offset,
+                e.normal,
+                jitter_angle(&self.params, 0, element as u64),
+            );
+            let sums = render(
+                &self.layout,
+                &frame,
+                &set,
+                e.surface,
+                m as usize + sources.len(),
+                false,
+            );
+            sources
+                .iter()
+                .zip(&sums[m as usize..])
+                .filter(|(_, f)| **f > 0.0)
+                .map(|(s, f)| (*s, *f))
+                .collect()
+        })
     }
 
     /// The parameters in use.
@@ -937,6 +999,21 @@ impl FormFactors for Hemicube<'_> {
         for (f, v) in out.iter_mut().zip(self.row_f64(element)) {
             *f = v as f32;
         }
+    }
+
+    /// From the element's near-field hemi-cube (rendered once per element, then cached);
+    /// 0 for a source element outside its near field.
+    fn element_pair(&self, element: usize, source: usize) -> Option<f64> {
+        Some(
+            self.near_links(element)
+                .iter()
+                .find(|(s, _)| *s as usize == source)
+                .map_or(0.0, |(_, f)| *f),
+        )
+    }
+
+    fn resolves_elements(&self) -> bool {
+        true
     }
 }
 

@@ -286,20 +286,15 @@ impl CouplingMatrix {
             .map(|(e, row)| {
                 let near_patches = &near_field.per_element[e];
                 let mut links = Vec::new();
-                if near_patches.is_empty() {
-                    ff.row(e, row);
-                } else {
-                    for (p, f) in row.iter_mut().enumerate() {
-                        if near_patches.binary_search(&(p as u32)).is_ok() {
-                            *f = 0.0;
-                            for s in mesh.patches[p].elements.clone() {
-                                let v = ff.element_pair(e, s as usize).unwrap_or(0.0);
-                                if v > 0.0 {
-                                    links.push((s, v as f32));
-                                }
-                            }
-                        } else {
-                            *f = ff.pair(e, p) as f32;
+                // The whole row first (a method may compute rows faster than pairs), then
+                // the near patches are resolved into element links.
+                ff.row(e, row);
+                for &p in near_patches {
+                    row[p as usize] = 0.0;
+                    for s in mesh.patches[p as usize].elements.clone() {
+                        let v = ff.element_pair(e, s as usize).unwrap_or(0.0);
+                        if v > 0.0 {
+                            links.push((s, v as f32));
                         }
                     }
                 }

@@ -113,18 +113,18 @@ impl Progressive {
     fn column(&self, mesh: &Mesh, ff: &dyn FormFactors, near: &NearField, p: usize) -> Column {
         let mut far = vec![0.0f32; mesh.elements.len()];
         let receivers = &near.per_patch[p];
+        // The whole column first (a method may compute columns faster than pairs), then
+        // the near receivers are resolved element by element.
+        ff.column(p, &mut far);
         if receivers.is_empty() {
-            ff.column(p, &mut far);
             return Column {
                 far,
                 near: Vec::new(),
             };
         }
-        far.par_iter_mut().enumerate().for_each(|(e, f)| {
-            if receivers.binary_search(&(e as u32)).is_err() {
-                *f = ff.pair(e, p) as f32;
-            }
-        });
+        for &e in receivers {
+            far[e as usize] = 0.0;
+        }
         let sources = mesh.patches[p].elements.clone();
         let near_rows = receivers
             .par_iter()
