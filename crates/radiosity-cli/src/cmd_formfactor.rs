@@ -28,9 +28,12 @@ pub struct FormfactorArgs {
     /// hemicube: pixels along the hemi-cube's top face [default: 128].
     #[arg(long, value_name = "N")]
     pub resolution: Option<usize>,
-    /// Seed of the random methods (monte-carlo).
+    /// Seed of the random methods (monte-carlo, hemicube with --jitter).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// hemicube: rotate each hemi-cube randomly about its normal (against aliasing).
+    #[arg(long)]
+    pub jitter: bool,
     /// Print, as a Markdown table, every method's maximum and mean error over the reference
     /// cases (Howell's catalog) and its time per form factor.
     #[arg(long, conflicts_with = "file")]
@@ -59,6 +62,7 @@ pub fn run(args: FormfactorArgs) -> Result<()> {
         samples: args.samples,
         resolution: args.resolution,
         seed: args.seed,
+        jitter: args.jitter,
     };
     if args.table {
         print!("{}", to_markdown(&accuracy_table(&methods, &settings)));

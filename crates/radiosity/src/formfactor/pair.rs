@@ -304,8 +304,11 @@ pub struct PairSettings {
     pub samples: Option<usize>,
     /// `hemicube`: pixels along the hemi-cube's top face.
     pub resolution: Option<usize>,
-    /// Seed of the random methods (`monte-carlo`); the same seed gives the same answer.
+    /// Seed of the random methods (`monte-carlo`, and the jittered `hemicube`); the same
+    /// seed gives the same answer.
     pub seed: u64,
+    /// `hemicube`: rotate each hemi-cube randomly about its normal (against aliasing).
+    pub jitter: bool,
 }
 
 /// A method's answer to a pair problem.
@@ -396,7 +399,8 @@ pub fn estimate(
                 resolution: settings
                     .resolution
                     .unwrap_or(hemicube::HemicubeParams::default().resolution),
-                ..Default::default()
+                jitter: settings.jitter,
+                seed: settings.seed,
             },
         ),
         FormFactorMethod::Raycast => raycast_pair(problem),
