@@ -84,6 +84,24 @@ impl ProbedSource {
     }
 }
 
+impl ProbedSource {
+    /// From given probe points and penumbra sub-areas (their centroids are computed).
+    pub(crate) fn from_parts(
+        vertices: Vec<DVec3>,
+        normal: DVec3,
+        probes: Vec<DVec3>,
+        sub_areas: Vec<Vec<DVec3>>,
+    ) -> Self {
+        Self {
+            vertices,
+            normal,
+            probes,
+            sub_points: sub_areas_centroids(&sub_areas),
+            sub_areas,
+        }
+    }
+}
+
 fn sub_areas_centroids(pieces: &[Vec<DVec3>]) -> Vec<DVec3> {
     pieces.iter().map(|p| area_centroid(p)).collect()
 }

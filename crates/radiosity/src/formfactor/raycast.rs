@@ -20,6 +20,7 @@
 //!   the unoccluded value is used, otherwise (a penumbra) the visible fraction is weighted by
 //!   the exact form factors of `penumbra²` source sub-areas, as Wallace et al. do.
 
+use super::analytic::{visible_fraction, ProbedSource};
 use super::analytic_point::point_to_polygon;
 use super::quadrature::element_points;
 use super::{subdivide, FormFactors, Visibility};
@@ -52,13 +53,9 @@ impl Default for RaycastParams {
 
 /// Precomputed per-patch data for the raycast method.
 struct SourcePatch {
-    vertices: Vec<DVec3>,
-    normal: DVec3,
+    probed: ProbedSource,
     centre: DVec3,
     radius: f64,
-    probes: Vec<DVec3>,
-    sub_areas: Vec<Vec<DVec3>>,
-    sub_points: Vec<DVec3>,
 }
 
 impl SourcePatch {
@@ -73,15 +70,10 @@ impl SourcePatch {
             .map(|s| centroid(s))
             .collect();
         let sub_areas = subdivide(&vertices, params.penumbra.max(1));
-        let sub_points = sub_areas.iter().map(|s| centroid(s)).collect();
         Self {
-            vertices,
-            normal,
+            probed: ProbedSource::from_parts(vertices, normal, probes, sub_areas),
             centre,
             radius,
-            probes,
-            sub_areas,
-            sub_points,
         }
     }
 }
@@ -201,45 +193,6 @@ impl<'a> Raycast<'a> {
             element_sources,
         }
     }
-
-    /// The visible fraction of patch `s` seen from the receiver points `vis`, each casting
-    /// one ray per probe point; in a penumbra, weighted by exact sub-area form factors.
-    fn visible_fraction(&self, vis: &[(DVec3, f64)], n: DVec3, s: &SourcePatch) -> f64 {
-        let mut visible = 0usize;
-        let mut total = 0usize;
-        for (i, (x, _)) in vis.iter().enumerate() {
-            // Rotate through the probes so that several receiver points cover all of them.
-            let per_point = if vis.len() == 1 { s.probes.len() } else { 1 };
-            for k in 0..per_point {
-                let y = s.probes[(i + k) % s.probes.len()];
-                total += 1;
-                visible += self.visibility.visible(*x, n, y, s.normal) as usize;
-            }
-        }
-        if visible == total {
-            return 1.0;
-        }
-        if visible == 0 {
-            return 0.0;
-        }
-        let (mut seen, mut all) = (0.0, 0.0);
-        for (x, w) in vis {
-            for (sub, y) in s.sub_areas.iter().zip(&s.sub_points) {
-                let f = w * point_to_polygon(*x, n, sub, s.normal);
-                if f > 0.0 {
-                    all += f;
-                    if self.visibility.visible(*x, n, *y, s.normal) {
-                        seen += f;
-                    }
-                }
-            }
-        }
-        if all > 0.0 {
-            seen / all
-        } else {
-            visible as f64 / total as f64
-        }
-    }
 }
 
 impl FormFactors for Raycast<'_> {
@@ -275,10 +228,11 @@ impl Raycast<'_> {
         // Whole-element culls: the source entirely behind the element's plane, or the
         // element entirely behind the source's plane.
         let corners = || e.corners.iter().map(|&c| self.mesh.vertices[c as usize]);
-        if s.vertices
+        if s.probed
+            .vertices
             .iter()
             .all(|v| (*v - e.centre).dot(e.normal) <= 1e-12 * s.radius)
-            || corners().all(|c| (c - s.centre).dot(s.normal) <= 1e-12 * s.radius)
+            || corners().all(|c| (c - s.centre).dot(s.probed.normal) <= 1e-12 * s.radius)
         {
             return 0.0;
         }
@@ -286,12 +240,18 @@ impl Raycast<'_> {
         let unoccluded: f64 = points
             .points
             .iter()
-            .map(|&(x, w)| w * point_to_polygon(x, e.normal, &s.vertices, s.normal))
+            .map(|&(x, w)| w * point_to_polygon(x, e.normal, &s.probed.vertices, s.probed.normal))
             .sum();
         if unoccluded <= 0.0 {
             return 0.0;
         }
-        let fraction = self.visible_fraction(&points.visibility, e.normal, s);
+        let fraction = visible_fraction(
+            self.visibility,
+            &points.visibility,
+            e.normal,
+            &s.probed,
+            false,
+        );
         unoccluded * fraction
     }
 }
