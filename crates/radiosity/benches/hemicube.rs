@@ -84,11 +84,7 @@ fn cornell_like() -> Scene {
     for f in block(p(0.265, 0.0, 0.296), p(0.425, 0.33, 0.456)) {
         polys.push((f, 0));
     }
-    let material = |name: &str, rho: [f64; 3], le: [f64; 3]| Material {
-        name: name.into(),
-        reflectance: rho,
-        emission: le,
-    };
+    let material = |name: &str, rho: [f64; 3], le: [f64; 3]| Material::new(name, rho, le);
     Scene {
         name: "cornell-like".into(),
         materials: vec![
@@ -108,6 +104,7 @@ fn cornell_like() -> Scene {
                 origin: Origin::default(),
             })
             .collect(),
+        lights: Vec::new(),
         camera: None,
     }
 }

@@ -16,6 +16,7 @@ pub mod display;
 pub mod formfactor;
 pub mod geometry;
 pub mod io;
+pub mod light;
 pub mod mesh;
 pub mod pipeline;
 pub mod progress;

@@ -509,11 +509,7 @@ mod tests {
     fn scene_with(polys: Vec<Vec<DVec3>>) -> Scene {
         Scene {
             name: "t".into(),
-            materials: vec![Material {
-                name: "m".into(),
-                reflectance: [0.5; 3],
-                emission: [0.0; 3],
-            }],
+            materials: vec![Material::new("m", [0.5; 3], [0.0; 3])],
             surfaces: polys
                 .into_iter()
                 .enumerate()
@@ -525,6 +521,7 @@ mod tests {
                     origin: Origin::default(),
                 })
                 .collect(),
+            lights: Vec::new(),
             camera: None,
         }
     }

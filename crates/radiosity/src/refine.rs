@@ -209,11 +209,7 @@ mod tests {
     fn plane() -> Mesh {
         let scene = Scene {
             name: "p".into(),
-            materials: vec![Material {
-                name: "m".into(),
-                reflectance: [0.5; 3],
-                emission: [0.0; 3],
-            }],
+            materials: vec![Material::new("m", [0.5; 3], [0.0; 3])],
             surfaces: vec![
                 Surface {
                     object: "quad".into(),
@@ -241,6 +237,7 @@ mod tests {
                     origin: Origin::default(),
                 },
             ],
+            lights: Vec::new(),
             camera: None,
         };
         let opts = MeshOptions {

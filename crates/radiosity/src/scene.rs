@@ -21,16 +21,30 @@ pub struct MaterialId(pub u32);
 pub struct SurfaceId(pub u32);
 
 /// A Lambertian material.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct Material {
+    /// The material's name (unique in a scene).
     pub name: String,
     /// Diffuse reflectance ρ per RGB channel (dimensionless, 0 ≤ ρ < 1).
     pub reflectance: [f64; 3],
     /// Emitted radiance L_e per RGB channel, W·m⁻²·sr⁻¹ (front side only).
     pub emission: [f64; 3],
+    /// Both sides reflect light (each side with ρ); emission stays on the front side.
+    /// One-sided surfaces (the default) have an opaque, black back.
+    pub two_sided: bool,
 }
 
 impl Material {
+    /// A one-sided material with reflectance ρ and emitted radiance L_e (W·m⁻²·sr⁻¹).
+    pub fn new(name: impl Into<String>, reflectance: [f64; 3], emission: [f64; 3]) -> Self {
+        Self {
+            name: name.into(),
+            reflectance,
+            emission,
+            two_sided: false,
+        }
+    }
+
     /// Emitted exitance E = π·L_e, W·m⁻².
     pub fn exitance(&self) -> [f64; 3] {
         self.emission.map(|l| PI * l)
@@ -98,12 +112,18 @@ impl Camera {
     }
 }
 
-/// A complete scene: materials, surfaces and an optional camera.
+/// A complete scene: materials, surfaces, light sources and an optional camera.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Scene {
+    /// The scene's name (outputs are named after it).
     pub name: String,
+    /// Materials, indexed by [`MaterialId`].
     pub materials: Vec<Material>,
+    /// Planar convex polygons.
     pub surfaces: Vec<Surface>,
+    /// Light sources that are not surfaces (point, spot, goniometric luminaires).
+    pub lights: Vec<crate::light::Light>,
+    /// The camera stored with the scene, if any.
     pub camera: Option<Camera>,
 }
 

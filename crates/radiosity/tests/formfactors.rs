@@ -414,11 +414,7 @@ fn cube() -> Scene {
     ];
     Scene {
         name: "cube".into(),
-        materials: vec![Material {
-            name: "white".into(),
-            reflectance: [0.5; 3],
-            emission: [0.0; 3],
-        }],
+        materials: vec![Material::new("white", [0.5; 3], [0.0; 3])],
         surfaces: faces
             .iter()
             .enumerate()
@@ -430,6 +426,7 @@ fn cube() -> Scene {
                 origin: Origin::default(),
             })
             .collect(),
+        lights: Vec::new(),
         camera: None,
     }
 }

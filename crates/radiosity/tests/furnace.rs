@@ -49,11 +49,7 @@ fn cube(rho: f64, emits: impl Fn(&str) -> f64) -> Scene {
     let mut surfaces = Vec::new();
     for (i, (name, v)) in FACES.iter().enumerate() {
         let e = emits(name);
-        materials.push(Material {
-            name: name.to_string(),
-            reflectance: [rho; 3],
-            emission: [e / std::f64::consts::PI; 3],
-        });
+        materials.push(Material::new(name.to_string(), [rho; 3], [e / std::f64::consts::PI; 3]));
         surfaces.push(Surface {
             object: name.to_string(),
             group: name.to_string(),
@@ -66,6 +62,7 @@ fn cube(rho: f64, emits: impl Fn(&str) -> f64) -> Scene {
         name: "furnace".into(),
         materials,
         surfaces,
+        lights: Vec::new(),
         camera: None,
     }
 }

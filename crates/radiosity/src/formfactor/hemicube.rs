@@ -1221,11 +1221,7 @@ mod tests {
     fn scene_of(polys: Vec<Vec<DVec3>>) -> Scene {
         Scene {
             name: "test".into(),
-            materials: vec![Material {
-                name: "grey".into(),
-                reflectance: [0.5; 3],
-                emission: [0.0; 3],
-            }],
+            materials: vec![Material::new("grey", [0.5; 3], [0.0; 3])],
             surfaces: polys
                 .into_iter()
                 .enumerate()
@@ -1237,6 +1233,7 @@ mod tests {
                     origin: Origin::default(),
                 })
                 .collect(),
+            lights: Vec::new(),
             camera: None,
         }
     }

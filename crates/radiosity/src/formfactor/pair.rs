@@ -453,11 +453,7 @@ fn raycast_polygon_pair(
     problem: &PairProblem,
     params: raycast::RaycastParams,
 ) -> f64 {
-    let material = Material {
-        name: "grey".into(),
-        reflectance: [0.5; 3],
-        emission: [0.0; 3],
-    };
+    let material = Material::new("grey", [0.5; 3], [0.0; 3]);
     let surface = |name: String, vertices: &[DVec3]| Surface {
         object: name,
         group: String::new(),
@@ -476,6 +472,7 @@ fn raycast_polygon_pair(
         name: "pair".into(),
         materials: vec![material],
         surfaces,
+        lights: Vec::new(),
         camera: None,
     };
     // Elements larger than anything in the scene: one element (and patch) per quad or

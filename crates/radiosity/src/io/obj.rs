@@ -167,6 +167,7 @@ pub fn parse_obj(
         name: scene_name(file_label),
         materials: library.materials,
         surfaces,
+        lights: Vec::new(),
         camera: None,
     })
 }
@@ -293,11 +294,11 @@ impl MaterialLibrary {
                     problem: "has no 'Kd' (diffuse reflectance)".to_owned(),
                 });
             };
-            let material = Material {
-                reflectance: diffuse.map(real),
-                emission: m.emissive.unwrap_or_default().map(real),
-                name: m.name,
-            };
+            let material = Material::new(
+                m.name,
+                diffuse.map(real),
+                m.emissive.unwrap_or_default().map(real),
+            );
             if let Some(problem) = material_problem(&material) {
                 return Err(SceneError::Material {
                     at,
@@ -668,11 +669,7 @@ mod tests {
 
     #[test]
     fn material_problems() {
-        let m = |reflectance, emission| Material {
-            name: "m".into(),
-            reflectance,
-            emission,
-        };
+        let m = |reflectance, emission| Material::new("m", reflectance, emission);
         assert_eq!(
             material_problem(&m([0.0, 0.5, 0.999], [0.0, 1.0, 2.0])),
             None

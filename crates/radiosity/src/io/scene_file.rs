@@ -257,11 +257,7 @@ pub fn parse_scene_file(json: &str, path: &Path) -> Result<LoadedScene, SceneErr
     }
 
     for entry in parsed.materials {
-        let material = Material {
-            name: entry.name,
-            reflectance: entry.reflectance,
-            emission: entry.emission,
-        };
+        let material = Material::new(entry.name, entry.reflectance, entry.emission);
         if let Some(problem) = material_problem(&material) {
             return Err(SceneError::Material {
                 at: whole(),
