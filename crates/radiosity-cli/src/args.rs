@@ -1,7 +1,13 @@
-//! Command-line arguments.
+//! Command-line arguments: plain values, handed to the library's settings resolution
+//! ([`radiosity::settings::resolve`]), which validates them and names the flag when one is
+//! wrong. Numbers are parsed leniently (negative counts are accepted here) so that the
+//! library, not the parser, says what a good value is.
 
 use clap::{Args, Parser, Subcommand};
 use glam::DVec3;
+use radiosity::formfactor::FormFactorMethod;
+use radiosity::settings::Overrides;
+use radiosity::solve::SolverKind;
 use std::path::PathBuf;
 
 /// Physically based diffuse global illumination by the radiosity method.
@@ -12,10 +18,15 @@ use std::path::PathBuf;
 #[derive(Debug, Parser)]
 #[command(name = "radiosity", version, about = "Physically based diffuse global illumination by the radiosity method", long_about = None)]
 pub struct Cli {
+    /// Worker threads [default: one per core].
+    #[arg(long, global = true, value_name = "N")]
+    pub threads: Option<usize>,
+    /// The command.
     #[command(subcommand)]
     pub command: Command,
 }
 
+/// The subcommands.
 #[derive(Debug, Subcommand)]
 pub enum Command {
     /// Solve a scene and render it to a PNG (sRGB) or EXR (linear radiance) image.
@@ -38,42 +49,136 @@ pub struct SolveArgs {
     #[arg(long, value_name = "METRES", allow_hyphen_values = true)]
     pub max_element_size: Option<f64>,
     /// Approximate total number of elements [default: 4000].
-    #[arg(long, value_name = "N")]
-    pub elements: Option<usize>,
+    #[arg(long, value_name = "N", allow_hyphen_values = true)]
+    pub elements: Option<i64>,
     /// Elements per patch edge: patches shoot, elements receive (1 = every element shoots)
     /// [default: 3].
-    #[arg(long, value_name = "K")]
-    pub patch_subdivision: Option<u32>,
-    /// Solver: direct | jacobi | gauss-seidel | progressive [default: progressive].
-    #[arg(long)]
-    pub solver: Option<String>,
-    /// Form-factor method: raycast | analytic-point | analytic-polygon | point-sampled |
-    /// hemicube | monte-carlo [default: raycast].
-    #[arg(long)]
-    pub form_factor: Option<String>,
-    /// Relative residual (matrix solvers) or unshot power fraction (progressive) to stop at
-    /// [default: 1e-3].
-    #[arg(long, allow_hyphen_values = true)]
+    #[arg(long, value_name = "K", allow_hyphen_values = true)]
+    pub patch_subdivision: Option<i64>,
+    /// Solver [default: progressive].
+    #[arg(long, value_enum)]
+    pub solver: Option<SolverKind>,
+    /// Form-factor method [default: raycast].
+    #[arg(long, value_enum)]
+    pub form_factor: Option<FormFactorMethod>,
+    /// Stop at this relative change (Jacobi, Gauss–Seidel) or unshot power fraction
+    /// (progressive) [default: 1e-3].
+    #[arg(long, value_name = "X", allow_hyphen_values = true)]
     pub tolerance: Option<f64>,
-    /// Stop progressive refinement after this many shots.
-    #[arg(long)]
-    pub max_shots: Option<usize>,
-    /// Adaptive meshing: start coarse (half of --elements) and split elements where the
-    /// radiosity changes fast, up to --elements in total.
+    /// Stop progressive refinement after this many shots [default: 100 per patch].
+    #[arg(long, value_name = "N", allow_hyphen_values = true)]
+    pub max_shots: Option<i64>,
+    /// Progressive refinement shoots ω × the unshot radiosity (over-relaxation), 0 < ω < 2
+    /// [default: 1].
+    #[arg(long, value_name = "W", allow_hyphen_values = true)]
+    pub overshoot: Option<f64>,
+    /// Adaptive meshing: start from half of --elements (edges √2 longer) and split elements
+    /// where the radiosity changes fast, up to --elements in total.
     #[arg(long)]
     pub adaptive: bool,
     /// Adaptive: split where neighbouring elements differ by more than this fraction of the
     /// mean radiosity [default: 0.1].
-    #[arg(long, value_name = "X", requires = "adaptive")]
+    #[arg(
+        long,
+        value_name = "X",
+        requires = "adaptive",
+        allow_hyphen_values = true
+    )]
     pub refine_threshold: Option<f64>,
     /// Adaptive: how many times an element may be split [default: 3].
-    #[arg(long, value_name = "D", requires = "adaptive")]
-    pub max_depth: Option<u8>,
-    /// Show no progress bars and no summary.
+    #[arg(
+        long,
+        value_name = "D",
+        requires = "adaptive",
+        allow_hyphen_values = true
+    )]
+    pub max_depth: Option<i64>,
+    /// Show no progress and no summary.
     #[arg(long, short)]
     pub quiet: bool,
 }
 
+impl SolveArgs {
+    /// The flags as overrides for the library's settings resolution.
+    pub fn overrides(&self) -> Overrides {
+        Overrides {
+            elements: self.elements,
+            max_element_size: self.max_element_size,
+            patch_subdivision: self.patch_subdivision,
+            solver: self.solver,
+            form_factor: self.form_factor,
+            tolerance: self.tolerance,
+            max_shots: self.max_shots,
+            overshoot: self.overshoot,
+            adaptive: self.adaptive,
+            refine_threshold: self.refine_threshold,
+            max_depth: self.max_depth,
+            ..Overrides::default()
+        }
+    }
+}
+
+/// Camera, image and display options.
+#[derive(Debug, Clone, Args)]
+pub struct ViewArgs {
+    /// Image width in pixels [default: 512].
+    #[arg(long, allow_hyphen_values = true)]
+    pub width: Option<i64>,
+    /// Image height in pixels [default: 512].
+    #[arg(long, allow_hyphen_values = true)]
+    pub height: Option<i64>,
+    /// Camera position x,y,z in metres [default: the scene's camera]; alone, the camera
+    /// looks at the centre of the scene.
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub eye: Option<DVec3>,
+    /// Point the camera looks at, x,y,z in metres.
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub target: Option<DVec3>,
+    /// Camera up direction x,y,z.
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub up: Option<DVec3>,
+    /// Vertical field of view in degrees.
+    #[arg(long, allow_hyphen_values = true)]
+    pub fov: Option<f64>,
+    /// Flat shading (one value per element) instead of smooth (Gouraud) shading.
+    #[arg(long)]
+    pub flat: bool,
+    /// Overlay the element edges.
+    #[arg(long)]
+    pub wireframe: bool,
+    /// PNG exposure in stops (pixel = L · 2^exposure before the sRGB curve) [default: 0].
+    #[arg(long, allow_hyphen_values = true)]
+    pub exposure: Option<f64>,
+    /// Anti-aliasing: supersamples per pixel axis (box filter) [default: 4].
+    #[arg(long, allow_hyphen_values = true)]
+    pub samples: Option<i64>,
+    /// Add the ambient term of progressive refinement (for unconverged solutions).
+    #[arg(long)]
+    pub ambient: bool,
+}
+
+impl ViewArgs {
+    /// Adds the view flags to `overrides`.
+    pub fn add_to(&self, overrides: &mut Overrides) {
+        overrides.width = self.width;
+        overrides.height = self.height;
+        overrides.samples = self.samples;
+        overrides.exposure = self.exposure;
+        overrides.ambient = self.ambient;
+    }
+
+    /// The camera flags.
+    pub fn camera(&self) -> radiosity::settings::CameraOverrides {
+        radiosity::settings::CameraOverrides {
+            eye: self.eye,
+            target: self.target,
+            up: self.up,
+            fov_deg: self.fov,
+        }
+    }
+}
+
+/// `radiosity solve`.
 #[derive(Debug, Args)]
 pub struct SolveCmdArgs {
     /// Scene file (.obj or .json); the built-in Cornell box if omitted.
@@ -88,6 +193,7 @@ pub struct SolveCmdArgs {
     pub solve: SolveArgs,
 }
 
+/// `radiosity render`.
 #[derive(Debug, Args)]
 pub struct RenderArgs {
     /// Scene file (.obj or .json); the built-in Cornell box if omitted.
@@ -99,39 +205,8 @@ pub struct RenderArgs {
     /// Render a saved solution (from `solve --save`) instead of solving a scene.
     #[arg(long, value_name = "FILE", conflicts_with = "scene")]
     pub solution: Option<PathBuf>,
-    /// Image width in pixels [default: 512].
-    #[arg(long)]
-    pub width: Option<u32>,
-    /// Image height in pixels [default: 512].
-    #[arg(long)]
-    pub height: Option<u32>,
-    /// Camera position x,y,z in metres [default: the scene's camera].
-    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
-    pub eye: Option<DVec3>,
-    /// Point the camera looks at, x,y,z.
-    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
-    pub target: Option<DVec3>,
-    /// Camera up direction x,y,z.
-    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
-    pub up: Option<DVec3>,
-    /// Vertical field of view in degrees.
-    #[arg(long)]
-    pub fov: Option<f64>,
-    /// Flat shading (one value per element) instead of smooth (Gouraud) shading.
-    #[arg(long)]
-    pub flat: bool,
-    /// Add the ambient term (for unconverged progressive solutions).
-    #[arg(long)]
-    pub ambient: bool,
-    /// Overlay the element edges.
-    #[arg(long)]
-    pub wireframe: bool,
-    /// PNG exposure in stops (pixel = L · 2^exposure before the sRGB curve) [default: 0].
-    #[arg(long, allow_hyphen_values = true)]
-    pub exposure: Option<f64>,
-    /// Anti-aliasing: supersamples per pixel axis (box filter).
-    #[arg(long, default_value_t = 4)]
-    pub samples: u32,
+    #[command(flatten)]
+    pub view: ViewArgs,
     #[command(flatten)]
     pub solve: SolveArgs,
 }

@@ -1,15 +1,16 @@
 //! `radiosity compare`: every solver on the same mesh, error versus time and iterations.
 
-use crate::cmd_progressive::{prepare_output_dir, MeshArgs};
-use crate::commands::{load_scene, solve_settings};
+use crate::args::SolveArgs;
+use crate::cmd_progressive::prepare_output_dir;
+use crate::commands::load_scene;
 use crate::progress::Bars;
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use radiosity::compare::{compare, CompareOptions};
-use radiosity::formfactor::Visibility;
 use radiosity::mesh::Mesh;
+use radiosity_studies::compare::{compare, CompareOptions};
 use std::path::PathBuf;
 
+/// `radiosity compare`.
 #[derive(Debug, Args)]
 pub struct CompareArgs {
     /// Scene file (.obj or .json); the built-in Cornell box if omitted.
@@ -17,37 +18,46 @@ pub struct CompareArgs {
     /// Output directory (created if missing): convergence.svg, convergence.png, table.md.
     #[arg(short, long, value_name = "DIR")]
     pub output: PathBuf,
-    /// ω of the overshooting progressive run, 1 < ω < 2 [default: 1.5].
-    #[arg(long, value_name = "W")]
-    pub overshoot: Option<f64>,
     /// Stop each run at this relative error [default: 1e-5].
-    #[arg(long, value_name = "E")]
+    #[arg(long, value_name = "E", allow_hyphen_values = true)]
     pub target_error: Option<f64>,
     /// Iteration cap for Jacobi and Gauss–Seidel [default: 2000].
-    #[arg(long, value_name = "N")]
-    pub max_iterations: Option<usize>,
-    /// Shot cap for the progressive runs [default: 200 per patch].
-    #[arg(long, value_name = "N")]
-    pub max_shots: Option<usize>,
+    #[arg(long, value_name = "N", allow_hyphen_values = true)]
+    pub max_iterations: Option<i64>,
     #[command(flatten)]
-    pub mesh: MeshArgs,
+    pub solve: SolveArgs,
 }
 
+/// Runs `radiosity compare`.
 pub fn run(args: CompareArgs) -> Result<()> {
-    if args.mesh.tolerance.is_some() {
+    if args.solve.tolerance.is_some() {
         bail!("--tolerance does not apply to `compare`; use --target-error");
     }
+    if args.solve.solver.is_some() || args.solve.adaptive {
+        bail!(
+            "--solver and --adaptive do not apply to `compare`: it runs every solver on one mesh"
+        );
+    }
     let defaults = CompareOptions::default();
+    let loaded = load_scene(args.scene.as_deref())?;
+    let mut flags = args.solve.overrides();
+    // The overshooting run's ω defaults to compare's own choice.
+    let overshoot = flags.overshoot.take();
+    let settings = loaded.settings(&flags)?;
     let options = CompareOptions {
-        overshoot: args.overshoot.unwrap_or(defaults.overshoot),
+        overshoot: overshoot.unwrap_or(defaults.overshoot),
         target_error: args.target_error.unwrap_or(defaults.target_error),
-        max_iterations: args.max_iterations.unwrap_or(defaults.max_iterations),
-        max_shots: args.max_shots,
+        max_iterations: match args.max_iterations {
+            None => defaults.max_iterations,
+            Some(n) if (1..=1_000_000).contains(&n) => n as usize,
+            Some(n) => bail!("--max-iterations must be a whole number from 1 to 1000000, got {n}"),
+        },
+        max_shots: settings.solve.solve.max_shots,
         memory_limit: defaults.memory_limit,
     };
     if !(options.overshoot > 1.0 && options.overshoot < 2.0) {
         bail!(
-            "--overshoot must be between 1 and 2 (exclusive), got {}",
+            "--overshoot must be between 1 and 2 (exclusive) for compare, got {}",
             options.overshoot
         );
     }
@@ -57,21 +67,20 @@ pub fn run(args: CompareArgs) -> Result<()> {
             options.target_error
         );
     }
-    if options.max_iterations == 0 || options.max_shots == Some(0) {
-        bail!("--max-iterations and --max-shots must be at least 1");
-    }
-    let (scene, file_settings) = load_scene(args.scene.as_deref())?;
-    let settings = solve_settings(&args.mesh.solve_args(), &file_settings)?;
     prepare_output_dir(&args.output)?;
-    let mesh = Mesh::build(&scene, &settings.mesh).context("meshing")?;
-    let visibility = Visibility::new(&mesh);
-    let ff = settings.form_factor.engine(&mesh, &visibility);
-    let bars = Bars::new(args.mesh.quiet);
-    let comparison = compare(&scene.name, &mesh, ff.as_ref(), &options, &bars)?;
+    let mesh = Mesh::build(&loaded.scene, &settings.solve.mesh).context("meshing")?;
+    let bars = Bars::new(args.solve.quiet);
+    let comparison = compare(
+        &loaded.scene.name,
+        &mesh,
+        settings.solve.form_factor,
+        &options,
+        &bars,
+    )?;
     comparison.write(&args.output)?;
     let table = comparison.table_markdown();
     print!("{table}");
-    if !args.mesh.quiet {
+    if !args.solve.quiet {
         eprintln!(
             "wrote {} (convergence.svg, convergence.png, table.md)",
             args.output.display()

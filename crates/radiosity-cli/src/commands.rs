@@ -1,23 +1,23 @@
-//! The subcommands: each loads, runs the library pipeline and writes its outputs.
+//! `render` and `solve`: load the scene once, resolve the settings in the library, run the
+//! pipeline, write the outputs.
 
 use crate::args::{Cli, Command, RenderArgs, SolveArgs, SolveCmdArgs};
 use crate::progress::Bars;
-use anyhow::{bail, Context, Result};
+use anyhow::{Context, Result};
 use radiosity::display::Shading;
-use radiosity::formfactor::FormFactorMethod;
 use radiosity::io::scene_file::{load_any, SceneSettings};
 use radiosity::io::solution_file::SolutionFile;
-use radiosity::mesh::MeshOptions;
 use radiosity::pipeline::{
-    render_elements, solve_scene, solve_scene_adaptive, Shaded, SolveSettings, Solved,
+    render_elements, solve_scene_adaptive_observed, solve_scene_observed, Shaded, Solved,
 };
-use radiosity::refine::RefineOptions;
 use radiosity::render::RenderOptions;
 use radiosity::report::Report;
 use radiosity::scene::{Camera, Scene};
-use radiosity::solve::{SolveOptions, SolverKind};
+use radiosity::settings::{resolve, Overrides, Settings};
+use radiosity::solve::SolverKind;
 use std::path::{Path, PathBuf};
 
+/// Runs a parsed command line.
 pub fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Render(args) => render(args),
@@ -28,87 +28,53 @@ pub fn run(cli: Cli) -> Result<()> {
     }
 }
 
-/// A scene and its file settings; the built-in Cornell box when no path is given.
-pub(crate) fn load_scene(path: Option<&Path>) -> Result<(Scene, SceneSettings)> {
+/// A scene and its file settings (with the name to report the file by); the built-in
+/// Cornell box when no path is given.
+pub(crate) struct Loaded {
+    pub scene: Scene,
+    pub file_settings: SceneSettings,
+    pub file: Option<String>,
+}
+
+pub(crate) fn load_scene(path: Option<&Path>) -> Result<Loaded> {
     match path {
-        None => Ok((radiosity::cornell::cornell_box(), SceneSettings::default())),
+        None => Ok(Loaded {
+            scene: radiosity::cornell::cornell_box(),
+            file_settings: SceneSettings::default(),
+            file: None,
+        }),
         Some(p) => {
             let loaded = load_any(p).with_context(|| format!("loading {}", p.display()))?;
-            Ok((loaded.scene, loaded.settings))
+            Ok(Loaded {
+                scene: loaded.scene,
+                file_settings: loaded.settings,
+                file: Some(p.display().to_string()),
+            })
         }
     }
 }
 
-/// Command-line flags override the scene file's settings, which override the defaults.
-pub(crate) fn solve_settings(args: &SolveArgs, file: &SceneSettings) -> Result<SolveSettings> {
-    let defaults = MeshOptions::default();
-    let max_element_size = args.max_element_size.or(if args.elements.is_some() {
-        None
-    } else {
-        file.max_element_size
-    });
-    let mesh = MeshOptions {
-        max_element_size,
-        elements: args.elements.or(file.elements).unwrap_or(defaults.elements),
-        patch_subdivision: args
-            .patch_subdivision
-            .or(file.patch_subdivision)
-            .unwrap_or(defaults.patch_subdivision),
-    };
-    let solver: SolverKind = match args.solver.as_deref().or(file.solver.as_deref()) {
-        Some(s) => s.parse().map_err(anyhow::Error::msg)?,
-        None => SolverKind::default(),
-    };
-    let form_factor: FormFactorMethod =
-        match args.form_factor.as_deref().or(file.form_factor.as_deref()) {
-            Some(s) => s.parse().map_err(anyhow::Error::msg)?,
-            None => FormFactorMethod::default(),
-        };
-    let mut solve = SolveOptions {
-        solver,
-        ..Default::default()
-    };
-    if let Some(t) = args.tolerance.or(file.tolerance) {
-        if !(t.is_finite() && t > 0.0 && t < 1.0) {
-            bail!("--tolerance must be a number between 0 and 1, got {t}");
-        }
-        solve.tolerance = t;
+impl Loaded {
+    /// Defaults < the scene file's settings < the flags, validated by the library.
+    pub fn settings(&self, flags: &Overrides) -> Result<Settings> {
+        Ok(resolve(
+            self.file.as_deref().map(|f| (&self.file_settings, f)),
+            flags,
+        )?)
     }
-    solve.max_shots = args.max_shots.or(file.max_shots);
-    Ok(SolveSettings {
-        mesh,
-        form_factor,
-        solve,
-    })
 }
 
-fn run_solve(scene: &Scene, settings: &SolveSettings, args: &SolveArgs) -> Result<Solved> {
-    let quiet = args.quiet;
-    let bars = Bars::new(quiet);
-    let solved = if args.adaptive {
-        let mut refine = RefineOptions {
-            max_elements: Some(settings.mesh.elements),
-            ..RefineOptions::default()
-        };
-        if let Some(x) = args.refine_threshold {
-            if !(x.is_finite() && x > 0.0) {
-                bail!("--refine-threshold must be a positive number, got {x}");
-            }
-            refine.threshold = x;
+pub(crate) fn run_solve(scene: &Scene, settings: &Settings, args: &SolveArgs) -> Result<Solved> {
+    let bars = Bars::new(args.quiet);
+    let mut observer = &bars;
+    let solved = match &settings.refine {
+        Some(refine) => {
+            solve_scene_adaptive_observed(scene, &settings.solve, refine, &bars, &mut observer)?
         }
-        if let Some(d) = args.max_depth {
-            if d > 8 {
-                bail!(
-                    "--max-depth must be at most 8 (each level quadruples the elements), got {d}"
-                );
-            }
-            refine.max_depth = d;
-        }
-        solve_scene_adaptive(scene, settings, &refine, &bars)?
-    } else {
-        solve_scene(scene, settings, &bars)?
+        None => solve_scene_observed(scene, &settings.solve, &bars, &mut observer)?,
     };
-    if !quiet {
+    drop(bars);
+    if !args.quiet {
         let st = &solved.solution.stats;
         let what = if st.solver == SolverKind::Progressive {
             format!(
@@ -117,7 +83,7 @@ fn run_solve(scene: &Scene, settings: &SolveSettings, args: &SolveArgs) -> Resul
             )
         } else {
             format!(
-                "{} iterations, relative residual {:.2e}",
+                "{} iterations, relative change {:.2e}",
                 st.iterations, st.residual
             )
         };
@@ -136,9 +102,14 @@ fn run_solve(scene: &Scene, settings: &SolveSettings, args: &SolveArgs) -> Resul
 }
 
 fn solve(args: SolveCmdArgs) -> Result<()> {
-    let (scene, file_settings) = load_scene(args.scene.as_deref())?;
-    let settings = solve_settings(&args.solve, &file_settings)?;
-    let solved = run_solve(&scene, &settings, &args.solve)?;
+    let loaded = load_scene(args.scene.as_deref())?;
+    let settings = loaded.settings(&args.solve.overrides())?;
+    for path in [&args.report, &args.save].into_iter().flatten() {
+        radiosity::io::atomic::check_writable(path)
+            .with_context(|| format!("cannot write {}", path.display()))?;
+    }
+    let solved = run_solve(&loaded.scene, &settings, &args.solve)?;
+    let scene = &loaded.scene;
     let report = Report::new(
         &scene.name,
         &solved.mesh,
@@ -176,134 +147,115 @@ fn solve(args: SolveCmdArgs) -> Result<()> {
 }
 
 fn render(args: RenderArgs) -> Result<()> {
-    let (name, scene_camera, file_settings, stored) = if let Some(path) = &args.solution {
-        let file = SolutionFile::load(path)
-            .with_context(|| format!("loading solution {}", path.display()))?;
-        (
-            file.scene.clone(),
-            file.camera.map(Camera::from),
-            SceneSettings::default(),
-            Some(file),
-        )
-    } else {
-        let (scene, settings) = load_scene(args.scene.as_deref())?;
-        (scene.name.clone(), scene.camera, settings, None)
-    };
-    let output: PathBuf = args.output.clone().unwrap_or_else(|| {
-        let stem = if name.is_empty() {
-            "render".to_string()
-        } else {
-            name.clone()
-        };
-        PathBuf::from(format!("{stem}.png"))
-    });
-    let width = args.width.or(file_settings.width).unwrap_or(512);
-    let height = args.height.or(file_settings.height).unwrap_or(512);
-    let max = radiosity::render::MAX_IMAGE_SIZE;
-    for (name, v) in [("--width", width), ("--height", height)] {
-        if v == 0 || v > max {
-            bail!("{name} must be between 1 and {max} pixels, got {v}");
-        }
-    }
-    if args.samples == 0 || args.samples > radiosity::render::MAX_SAMPLES_PER_AXIS {
-        bail!(
-            "--samples must be between 1 and {}, got {}",
-            radiosity::render::MAX_SAMPLES_PER_AXIS,
-            args.samples
-        );
-    }
-    let exposure = args.exposure.or(file_settings.exposure).unwrap_or(0.0);
-    if !exposure.is_finite() || exposure.abs() > 64.0 {
-        bail!("--exposure must be a finite number of stops between -64 and 64, got {exposure}");
-    }
-    let options = RenderOptions {
-        width,
-        height,
-        samples_per_axis: args.samples,
-        ..RenderOptions::default()
-    };
-    let shading = if args.flat {
+    let mut flags = args.solve.overrides();
+    args.view.add_to(&mut flags);
+    let shading = if args.view.flat {
         Shading::Flat
     } else {
         Shading::Smooth
     };
-
-    let image = match stored {
-        Some(file) => {
-            let camera = camera_from(&args, file.camera.map(Camera::from), None)?;
-            let vertices = file.vertices();
-            let radiosity = file.display_radiosity(args.ambient);
-            let shaded = Shaded {
-                vertices: &vertices,
-                elements: &file.elements,
-                radiosity: &radiosity,
-            };
-            render_elements(&shaded, &camera, shading, args.wireframe, &options)?
-        }
-        None => {
-            let (scene, _) = load_scene(args.scene.as_deref())?;
-            let settings = solve_settings(&args.solve, &file_settings)?;
-            let camera = camera_from(&args, scene_camera, Some(&scene))?;
-            let solved = run_solve(&scene, &settings, &args.solve)?;
-            let radiosity = solved
-                .solution
-                .display_radiosity(&solved.mesh, args.ambient);
-            let shaded = Shaded {
-                vertices: &solved.mesh.vertices,
-                elements: &solved.mesh.elements,
-                radiosity: &radiosity,
-            };
-            render_elements(&shaded, &camera, shading, args.wireframe, &options)?
-        }
+    let output_for = |name: &str| -> Result<PathBuf> {
+        let output = args.output.clone().unwrap_or_else(|| default_output(name));
+        radiosity::render::check_output(&output)?;
+        Ok(output)
+    };
+    let (image, output, settings) = if let Some(path) = &args.solution {
+        let file = SolutionFile::load(path)
+            .with_context(|| format!("loading solution {}", path.display()))?;
+        let settings = resolve(None, &flags)?;
+        let output = output_for(&file.scene)?;
+        let base = file.camera.map(Camera::from).unwrap_or_default();
+        let vertices = file.vertices();
+        let centre = centre_of(&vertices);
+        let camera = radiosity::settings::camera(base, centre, &args.view.camera())?;
+        let radiosity = file.display_radiosity(settings.render.ambient);
+        let shaded = Shaded {
+            vertices: &vertices,
+            elements: &file.elements,
+            radiosity: &radiosity,
+        };
+        let image = render_elements(
+            &shaded,
+            &camera,
+            shading,
+            args.view.wireframe,
+            &render_options(&settings),
+        )?;
+        (image, output, settings)
+    } else {
+        let loaded = load_scene(args.scene.as_deref())?;
+        let settings = loaded.settings(&flags)?;
+        let scene = &loaded.scene;
+        let output = output_for(&scene.name)?;
+        let (lo, hi) = scene.bounds();
+        let camera = radiosity::settings::camera(
+            scene.camera_or_default(),
+            Some((lo + hi) * 0.5),
+            &args.view.camera(),
+        )?;
+        let solved = run_solve(scene, &settings, &args.solve)?;
+        let radiosity = solved
+            .solution
+            .display_radiosity(&solved.mesh, settings.render.ambient);
+        let shaded = Shaded {
+            vertices: &solved.mesh.vertices,
+            elements: &solved.mesh.elements,
+            radiosity: &radiosity,
+        };
+        let image = render_elements(
+            &shaded,
+            &camera,
+            shading,
+            args.view.wireframe,
+            &render_options(&settings),
+        )?;
+        (image, output, settings)
     };
     image
-        .write(&output, exposure as f32)
+        .write(&output, settings.render.exposure as f32)
         .with_context(|| format!("writing {}", output.display()))?;
     if !args.solve.quiet {
-        eprintln!("wrote {} ({width}×{height})", output.display());
+        eprintln!(
+            "wrote {} ({}×{})",
+            output.display(),
+            settings.render.width,
+            settings.render.height
+        );
     }
     Ok(())
 }
 
-/// The camera: flags over the scene's camera over one framing the scene.
-fn camera_from(
-    args: &RenderArgs,
-    scene_camera: Option<Camera>,
-    scene: Option<&Scene>,
-) -> Result<Camera> {
-    let base = scene_camera
-        .or_else(|| scene.map(Scene::camera_or_default))
-        .unwrap_or_default();
-    camera_with(args.eye, args.target, args.up, args.fov, base)
+/// `<name>.png` in the working directory; a name that is empty or not a plain file name
+/// (a path, `..`) becomes `render.png`, so a scene's name cannot write elsewhere.
+fn default_output(name: &str) -> PathBuf {
+    let plain = !name.is_empty()
+        && name != "."
+        && name != ".."
+        && !name.contains(['/', '\\'])
+        && Path::new(name).file_name().is_some();
+    PathBuf::from(format!("{}.png", if plain { name } else { "render" }))
 }
 
-/// `base` with the given flags applied, checked: a field of view in (0°, 180°), distinct
-/// eye and target, and an up direction not parallel to the view.
-pub(crate) fn camera_with(
-    eye: Option<glam::DVec3>,
-    target: Option<glam::DVec3>,
-    up: Option<glam::DVec3>,
-    fov: Option<f64>,
-    base: Camera,
-) -> Result<Camera> {
-    let camera = Camera {
-        eye: eye.unwrap_or(base.eye),
-        target: target.unwrap_or(base.target),
-        up: up.unwrap_or(base.up),
-        fov_deg: fov.unwrap_or(base.fov_deg),
-    };
-    if !(camera.fov_deg > 0.0 && camera.fov_deg < 180.0) {
-        bail!(
-            "--fov must be between 0 and 180 degrees, got {}",
-            camera.fov_deg
-        );
+/// The renderer's options from the resolved settings.
+pub(crate) fn render_options(settings: &Settings) -> RenderOptions {
+    RenderOptions {
+        width: settings.render.width,
+        height: settings.render.height,
+        samples_per_axis: settings.render.samples,
+        ..RenderOptions::default()
     }
-    let look = camera.target - camera.eye;
-    if look.length() < 1e-12 {
-        bail!("camera eye and target coincide");
+}
+
+fn centre_of(vertices: &[glam::DVec3]) -> Option<glam::DVec3> {
+    if vertices.is_empty() {
+        return None;
     }
-    if look.normalize().cross(camera.up).length() < 1e-9 {
-        bail!("camera up direction is parallel to the viewing direction");
-    }
-    Ok(camera)
+    let (lo, hi) = vertices.iter().fold(
+        (
+            glam::DVec3::splat(f64::INFINITY),
+            glam::DVec3::splat(f64::NEG_INFINITY),
+        ),
+        |(lo, hi), v| (lo.min(*v), hi.max(*v)),
+    );
+    Some((lo + hi) * 0.5)
 }

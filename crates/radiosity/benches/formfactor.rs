@@ -12,7 +12,7 @@ use radiosity::cornell::cornell_box;
 use radiosity::formfactor::hemicube::{Hemicube, HemicubeParams};
 use radiosity::formfactor::pair::{estimate, PairSettings};
 use radiosity::formfactor::table::reference_cases;
-use radiosity::formfactor::{FormFactorMethod, FormFactors};
+use radiosity::formfactor::{Engine, FormFactorMethod};
 use radiosity::mesh::{Mesh, MeshOptions};
 use radiosity::pipeline::{solve_scene, SolveSettings};
 use radiosity::progress::NoProgress;
@@ -60,6 +60,7 @@ fn bench_hemicube(c: &mut Criterion) {
                 resolution,
                 ..Default::default()
             },
+            &[],
         );
         let mut row = vec![0.0f32; mesh.patches.len()];
         group.bench_function(format!("resolution {resolution}"), |b| {

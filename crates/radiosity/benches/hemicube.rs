@@ -11,7 +11,7 @@
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use glam::DVec3;
 use radiosity::formfactor::hemicube::{Hemicube, HemicubeParams};
-use radiosity::formfactor::FormFactors;
+use radiosity::formfactor::Engine;
 use radiosity::geometry::Polygon;
 use radiosity::mesh::{Mesh, MeshOptions};
 use radiosity::scene::{Material, MaterialId, Origin, Scene, Surface};
@@ -144,7 +144,7 @@ fn bench(c: &mut Criterion) {
             resolution: res,
             ..Default::default()
         };
-        let hc = Hemicube::new(&mesh, params);
+        let hc = Hemicube::new(&mesh, params, &[]);
         let mut row = vec![0.0f32; patches];
         group.throughput(Throughput::Elements(patches as u64));
         group.bench_with_input(BenchmarkId::new("row", res), &res, |b, _| {

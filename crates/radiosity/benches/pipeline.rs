@@ -6,8 +6,9 @@
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use radiosity::cornell::cornell_box;
+use radiosity::coupling::{Dense, NearField};
 use radiosity::display::Shading;
-use radiosity::formfactor::{CouplingMatrix, FormFactorMethod, Visibility};
+use radiosity::formfactor::{engine, FormFactorMethod, Visibility};
 use radiosity::mesh::{Mesh, MeshOptions};
 use radiosity::pipeline::{render_elements, solve_scene, Shaded, SolveSettings};
 use radiosity::progress::NoProgress;
@@ -33,12 +34,13 @@ fn form_factors(c: &mut Criterion) {
     for n in SIZES {
         let mesh = Mesh::build(&scene, &settings(n).mesh).unwrap();
         let vis = Visibility::new(&mesh);
-        let ff = FormFactorMethod::Raycast.engine(&mesh, &vis);
+        let near = NearField::decide(&mesh);
+        let ff = engine(FormFactorMethod::Raycast, &mesh, &vis, &near.per_element);
         g.throughput(Throughput::Elements(
             (mesh.len() * mesh.patches.len()) as u64,
         ));
         g.bench_with_input(BenchmarkId::from_parameter(mesh.len()), &mesh, |b, mesh| {
-            b.iter(|| CouplingMatrix::compute(ff.as_ref(), mesh, &NoProgress))
+            b.iter(|| Dense::compute(mesh, ff.as_ref(), &near, &NoProgress))
         });
     }
     g.finish();
@@ -88,8 +90,8 @@ fn render(c: &mut Criterion) {
 /// per-polygon error against Mitsuba (mean ~1.0 %) that a uniform mesh needs ~4700 elements
 /// for (measured with `radiosity solve --solver gauss-seidel --elements N [--adaptive]`).
 fn adaptive_vs_uniform(c: &mut Criterion) {
+    use radiosity::mesh::RefineOptions;
     use radiosity::pipeline::solve_scene_adaptive;
-    use radiosity::refine::RefineOptions;
     use radiosity::solve::{SolveOptions, SolverKind};
     let mut g = c.benchmark_group("cornell_same_accuracy");
     g.sample_size(10).measurement_time(Duration::from_secs(8));

@@ -10,7 +10,8 @@ use std::time::Duration;
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use radiosity::cornell::cornell_box;
-use radiosity::formfactor::{FormFactorMethod, Visibility};
+use radiosity::coupling::{Columns, NearField};
+use radiosity::formfactor::{engine, FormFactorMethod, Visibility};
 use radiosity::mesh::{Mesh, MeshOptions};
 use radiosity::solve::progressive::Progressive;
 use radiosity::solve::SolveOptions;
@@ -35,16 +36,20 @@ fn shots_per_second(c: &mut Criterion) {
         )
         .unwrap();
         let visibility = Visibility::new(&mesh);
-        let ff = FormFactorMethod::Raycast.engine(&mesh, &visibility);
+        let near = NearField::decide(&mesh);
+        let ff = engine(
+            FormFactorMethod::Raycast,
+            &mesh,
+            &visibility,
+            &near.per_element,
+        );
         // No memory for cached columns: every shot computes its column.
-        let options = SolveOptions {
-            memory_limit: 0,
-            ..Default::default()
-        };
+        let coupling = Columns::new(&mesh, ff.as_ref(), &near, 0);
+        let options = SolveOptions::default();
         // One run carried on across iterations, so the shots measured are a stretch of a
         // real solution (the light first, then the brightest surfaces), not the light's
         // patches over and over.
-        let mut state = Progressive::new(&mesh, &options);
+        let mut state = Progressive::new(&coupling, &options);
         let id = format!(
             "cornell_{}_elements_{}_patches",
             mesh.len(),
@@ -53,8 +58,8 @@ fn shots_per_second(c: &mut Criterion) {
         group.bench_function(id, |b| {
             b.iter(|| {
                 for _ in 0..SHOTS {
-                    if !state.shoot(&mesh, ff.as_ref()) {
-                        state = Progressive::new(&mesh, &options);
+                    if !state.shoot(&coupling) {
+                        state = Progressive::new(&coupling, &options);
                     }
                 }
                 black_box(state.shots())

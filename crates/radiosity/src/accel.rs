@@ -30,7 +30,7 @@
 //!
 //! See also: the form-factor stage, which is the main caller.
 
-use glam::{Vec3, Vec3A, Vec4};
+use glam::{DVec3, Vec3, Vec3A, Vec4};
 
 /// Triangles tested together by one SIMD ray-triangle test.
 const PACKET: usize = 4;
@@ -356,6 +356,63 @@ impl Bvh {
     /// is never blocked.
     pub fn segment_occluded(&self, a: Vec3, b: Vec3, eps: f32) -> bool {
         self.occluded(a, b - a, eps, 1.0 - eps)
+    }
+
+    /// Appends to `out` every triangle whose bounding box overlaps the box [`lo`, `hi`], as
+    /// (input index, vertices); `out` is cleared first. Each triangle appears once.
+    pub fn triangles_in_box(&self, lo: Vec3, hi: Vec3, out: &mut Vec<(u32, [Vec3; 3])>) {
+        out.clear();
+        let overlaps = |min: Vec3, max: Vec3| min.cmple(hi).all() && max.cmpge(lo).all();
+        if self.len == 0 || !overlaps(self.bounds.min.into(), self.bounds.max.into()) {
+            return;
+        }
+        let mut stack = vec![self.root];
+        while let Some(child) = stack.pop() {
+            if child.count() > 0 {
+                for k in child.first()..child.first() + child.count() {
+                    let (packet, ids) = (&self.packets[k], self.ids[k]);
+                    for lane in 0..PACKET {
+                        if lane > 0 && ids[lane] == ids[lane - 1] {
+                            continue; // a leaf pads its last packet with its last triangle
+                        }
+                        let tri = [0, 1, 2].map(|v| {
+                            Vec3::new(
+                                packet.v[v][0][lane],
+                                packet.v[v][1][lane],
+                                packet.v[v][2][lane],
+                            )
+                        });
+                        let (tmin, tmax) = (
+                            tri[0].min(tri[1]).min(tri[2]),
+                            tri[0].max(tri[1]).max(tri[2]),
+                        );
+                        if overlaps(tmin, tmax) {
+                            out.push((ids[lane], tri));
+                        }
+                    }
+                }
+            } else {
+                let node = &self.nodes[child.first()];
+                for slot in 0..4 {
+                    if node.used & (1 << slot) == 0 {
+                        continue;
+                    }
+                    let min = Vec3::new(
+                        node.bounds[0][0][slot],
+                        node.bounds[0][1][slot],
+                        node.bounds[0][2][slot],
+                    );
+                    let max = Vec3::new(
+                        node.bounds[1][0][slot],
+                        node.bounds[1][1][slot],
+                        node.bounds[1][2][slot],
+                    );
+                    if overlaps(min, max) {
+                        stack.push(node.children[slot]);
+                    }
+                }
+            }
+        }
     }
 
     /// Appends `node` to the 4-wide tree: its node before its descendants, its leaves'
@@ -796,6 +853,86 @@ fn partition(prims: &mut [Prim], left: impl Fn(&Prim) -> bool) -> usize {
         }
     }
     mid
+}
+
+/// Point-to-point visibility by shadow rays through a BVH over the scene's surfaces.
+///
+/// Every surface blocks light from both sides (a back face is opaque). Ray ends are lifted
+/// off their surfaces by a small offset proportional to the scene size so that the surfaces
+/// the ray starts and ends on are not hit.
+pub struct Visibility {
+    bvh: Bvh,
+    offset: f64,
+    /// The polygon each BVH triangle came from (an index into the polygons it was built from:
+    /// [`Mesh::surface_polygons`] for [`Visibility::new`]).
+    triangle_polygon: Vec<u32>,
+}
+
+impl Visibility {
+    /// Builds the BVH over the mesh's surface polygons (fan-triangulated).
+    pub fn new(mesh: &crate::mesh::Mesh) -> Self {
+        let (mut lo, mut hi) = (
+            glam::DVec3::splat(f64::INFINITY),
+            glam::DVec3::splat(f64::NEG_INFINITY),
+        );
+        for p in &mesh.surface_polygons {
+            let (a, b) = p.bounds();
+            lo = lo.min(a);
+            hi = hi.max(b);
+        }
+        let diameter = (hi - lo).length().max(1e-9);
+        Self::from_polygons(mesh.surface_polygons.iter().map(|p| p.vertices()), diameter)
+    }
+
+    /// Builds the BVH over arbitrary opaque convex polygons (fan-triangulated), e.g. the
+    /// occluders of a [`pair::PairProblem`]; ray ends are lifted by 1e-5 × `diameter`, the
+    /// size of the whole configuration in metres.
+    pub fn from_polygons<'p>(
+        polygons: impl IntoIterator<Item = &'p [DVec3]>,
+        diameter: f64,
+    ) -> Self {
+        let mut tris = Vec::new();
+        let mut triangle_polygon = Vec::new();
+        for (i, p) in polygons.into_iter().enumerate() {
+            for w in p[1..].windows(2) {
+                tris.push([p[0].as_vec3(), w[0].as_vec3(), w[1].as_vec3()]);
+                triangle_polygon.push(i as u32);
+            }
+        }
+        Self {
+            bvh: Bvh::build(&tris),
+            offset: 1e-5 * diameter.max(1e-9),
+            triangle_polygon,
+        }
+    }
+
+    /// How far ray ends are lifted off their surfaces, m.
+    pub fn offset(&self) -> f64 {
+        self.offset
+    }
+
+    /// The polygon (surface) a BVH triangle belongs to.
+    pub fn polygon_of(&self, triangle: u32) -> usize {
+        self.triangle_polygon[triangle as usize] as usize
+    }
+
+    /// True when nothing blocks the segment from `x` (on a surface with normal `nx`) to `y`
+    /// (on a surface with normal `ny`).
+    pub fn visible(&self, x: DVec3, nx: DVec3, y: DVec3, ny: DVec3) -> bool {
+        let a = (x + nx * self.offset).as_vec3();
+        let b = (y + ny * self.offset).as_vec3();
+        !self.bvh.segment_occluded(a, b, 1e-5)
+    }
+
+    /// The underlying BVH.
+    pub fn bvh(&self) -> &Bvh {
+        &self.bvh
+    }
+
+    /// Closest surface hit along a ray (for picking and tests).
+    pub fn first_hit(&self, origin: Vec3, dir: Vec3) -> Option<Hit> {
+        self.bvh.intersect(origin, dir, 0.0, f32::INFINITY)
+    }
 }
 
 #[cfg(test)]

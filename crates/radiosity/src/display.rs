@@ -113,7 +113,169 @@ impl Conformity {
     }
 }
 
-/// Builds the shaded triangles for a camera at `eye`.
+/// The crack-free display mesh with a radiosity at every vertex: the one place per-vertex
+/// radiosity is computed, for the rasteriser, the exporters and the viewer alike.
+///
+/// Every element becomes triangles: itself if it is a triangle without hanging vertices,
+/// else a fan from its centre over its boundary with the hanging vertices inserted. Vertex
+/// values (W·m⁻²): with smooth shading, the area-weighted mean of the same surface's elements
+/// sharing the vertex, hanging vertices constrained to their edge's interpolation; fan
+/// centres the mean of the element's corners (the bilinear centre value). With flat shading
+/// every element has its own vertices carrying its own radiosity. Vertices are shared between
+/// the triangles of one surface (smooth) or one element (flat), never across surfaces.
+#[derive(Debug, Clone, Default)]
+pub struct DisplayMesh {
+    /// Vertex positions, m.
+    pub positions: Vec<DVec3>,
+    /// Triangles as vertex indices, counter-clockwise seen from the front.
+    pub triangles: Vec<[u32; 3]>,
+    /// The element each triangle belongs to.
+    pub triangle_element: Vec<u32>,
+    /// Radiosity at each vertex, W·m⁻².
+    pub vertex_radiosity: Vec<[f64; 3]>,
+}
+
+impl DisplayMesh {
+    /// Builds the display mesh of `elements` (over `vertices`) with element radiosities
+    /// `radiosity` (W·m⁻²).
+    pub fn build(
+        vertices: &[DVec3],
+        elements: &[Element],
+        radiosity: &[[f64; 3]],
+        shading: Shading,
+    ) -> Self {
+        let conformity = Conformity::find(vertices, elements);
+        Self::with_conformity(vertices, elements, radiosity, shading, &conformity)
+    }
+
+    /// As [`DisplayMesh::build`], with the hanging vertices already found.
+    pub fn with_conformity(
+        vertices: &[DVec3],
+        elements: &[Element],
+        radiosity: &[[f64; 3]],
+        shading: Shading,
+        conformity: &Conformity,
+    ) -> Self {
+        // Vertex radiosity: area-weighted mean over adjacent elements (vertices are shared
+        // only within one surface, so this never blends across surfaces).
+        let mut vertex_b = vec![[0.0f64; 3]; vertices.len()];
+        if shading == Shading::Smooth {
+            let mut weight = vec![0.0f64; vertices.len()];
+            for (e, b) in elements.iter().zip(radiosity) {
+                for &c in &e.corners {
+                    for ch in 0..3 {
+                        vertex_b[c as usize][ch] += e.area * b[ch];
+                    }
+                    weight[c as usize] += e.area;
+                }
+            }
+            for (v, w) in vertex_b.iter_mut().zip(&weight) {
+                if *w > 0.0 {
+                    v.iter_mut().for_each(|x| *x /= w);
+                }
+            }
+            constrain_hanging(vertices, elements, conformity, &mut vertex_b);
+        }
+        let mut out = DisplayMesh::default();
+        // Display vertex of (mesh vertex, surface) for smooth shading.
+        let mut shared: HashMap<(u32, u32), u32> = HashMap::new();
+        let push = |out: &mut DisplayMesh, p: DVec3, b: [f64; 3]| -> u32 {
+            out.positions.push(p);
+            out.vertex_radiosity.push(b);
+            (out.positions.len() - 1) as u32
+        };
+        for (i, (e, b)) in elements.iter().zip(radiosity).enumerate() {
+            let corner_value = |c: u32| -> [f64; 3] {
+                if shading == Shading::Smooth {
+                    vertex_b[c as usize]
+                } else {
+                    *b
+                }
+            };
+            // Boundary loop with hanging vertices inserted (values interpolated).
+            let n = e.corners.len();
+            let mut loop_ids: Vec<u32> = Vec::with_capacity(n * 2);
+            for k in 0..n {
+                let (ca, cb) = (e.corners[k], e.corners[(k + 1) % n]);
+                let (va, vb) = (corner_value(ca), corner_value(cb));
+                let mut vertex = |out: &mut DisplayMesh, v: u32, value: [f64; 3]| -> u32 {
+                    if shading == Shading::Smooth {
+                        *shared
+                            .entry((v, e.surface))
+                            .or_insert_with(|| push(out, vertices[v as usize], value))
+                    } else {
+                        push(out, vertices[v as usize], value)
+                    }
+                };
+                loop_ids.push(vertex(&mut out, ca, va));
+                for &(t, v) in &conformity.edges[i][k] {
+                    let val = std::array::from_fn(|ch| va[ch] * (1.0 - t) + vb[ch] * t);
+                    loop_ids.push(vertex(&mut out, v, val));
+                }
+            }
+            if loop_ids.len() == 3 {
+                out.triangles.push([loop_ids[0], loop_ids[1], loop_ids[2]]);
+                out.triangle_element.push(i as u32);
+                continue;
+            }
+            // Fan from the centre; its value is the mean of the corners (bilinear centre value).
+            let mut centre_value = [0.0; 3];
+            for &c in &e.corners {
+                let v = corner_value(c);
+                for ch in 0..3 {
+                    centre_value[ch] += v[ch] / n as f64;
+                }
+            }
+            let centre = e
+                .corners
+                .iter()
+                .map(|&c| vertices[c as usize])
+                .sum::<DVec3>()
+                / n as f64;
+            let c = push(&mut out, centre, centre_value);
+            for k in 0..loop_ids.len() {
+                out.triangles
+                    .push([c, loop_ids[k], loop_ids[(k + 1) % loop_ids.len()]]);
+                out.triangle_element.push(i as u32);
+            }
+        }
+        out
+    }
+
+    /// The triangles for a camera at `eye`, as radiance L = B/π (W·m⁻²·sr⁻¹): surfaces seen
+    /// from behind are black, except that the back of a two-sided surface (one with a twin
+    /// facing the other way, `culled_from_behind[element]`) is left out so its twin shows.
+    pub fn shaded_triangles(
+        &self,
+        elements: &[Element],
+        culled_from_behind: &dyn Fn(usize) -> bool,
+        eye: DVec3,
+    ) -> Vec<ShadedTriangle> {
+        let to_radiance = |b: [f64; 3]| b.map(|x| (x / PI) as f32);
+        let mut out = Vec::with_capacity(self.triangles.len());
+        for (t, &e) in self.triangles.iter().zip(&self.triangle_element) {
+            let el = &elements[e as usize];
+            let front = (eye - el.centre).dot(el.normal) > 0.0;
+            if !front && culled_from_behind(e as usize) {
+                continue;
+            }
+            let value = |v: u32| {
+                if front {
+                    to_radiance(self.vertex_radiosity[v as usize])
+                } else {
+                    [0.0; 3]
+                }
+            };
+            out.push(ShadedTriangle {
+                positions: t.map(|v| self.positions[v as usize]),
+                radiance: t.map(value),
+            });
+        }
+        out
+    }
+}
+
+/// Builds the shaded triangles for a camera at `eye` (see [`DisplayMesh`]).
 pub fn shaded_triangles(
     vertices: &[DVec3],
     elements: &[Element],
@@ -122,86 +284,8 @@ pub fn shaded_triangles(
     conformity: &Conformity,
     eye: DVec3,
 ) -> Vec<ShadedTriangle> {
-    // Vertex radiosity: area-weighted mean over adjacent elements (vertices are shared only
-    // within one surface, so this never blends across surfaces).
-    let mut vertex_b = vec![[0.0f64; 3]; vertices.len()];
-    let mut weight = vec![0.0f64; vertices.len()];
-    if shading == Shading::Smooth {
-        for (e, b) in elements.iter().zip(radiosity) {
-            for &c in &e.corners {
-                for ch in 0..3 {
-                    vertex_b[c as usize][ch] += e.area * b[ch];
-                }
-                weight[c as usize] += e.area;
-            }
-        }
-        for (v, w) in vertex_b.iter_mut().zip(&weight) {
-            if *w > 0.0 {
-                v.iter_mut().for_each(|x| *x /= w);
-            }
-        }
-        constrain_hanging(vertices, elements, conformity, &mut vertex_b);
-    }
-    let to_radiance = |b: [f64; 3]| b.map(|x| (x / PI) as f32);
-    let mut out = Vec::with_capacity(elements.len() * 4);
-    for (i, (e, b)) in elements.iter().zip(radiosity).enumerate() {
-        let front = (eye - e.centre).dot(e.normal) > 0.0;
-        let corner_value = |c: u32| -> [f64; 3] {
-            if !front {
-                [0.0; 3]
-            } else if shading == Shading::Smooth {
-                vertex_b[c as usize]
-            } else {
-                *b
-            }
-        };
-        // Boundary loop with hanging vertices inserted (values interpolated along the edge).
-        let mut loop_pts: Vec<(DVec3, [f64; 3])> = Vec::with_capacity(e.corners.len() * 2);
-        let n = e.corners.len();
-        for k in 0..n {
-            let (ca, cb) = (e.corners[k], e.corners[(k + 1) % n]);
-            let (va, vb) = (corner_value(ca), corner_value(cb));
-            loop_pts.push((vertices[ca as usize], va));
-            for &(t, v) in &conformity.edges[i][k] {
-                let val = std::array::from_fn(|ch| va[ch] * (1.0 - t) + vb[ch] * t);
-                loop_pts.push((vertices[v as usize], val));
-            }
-        }
-        if loop_pts.len() == 3 {
-            out.push(ShadedTriangle {
-                positions: [loop_pts[0].0, loop_pts[1].0, loop_pts[2].0],
-                radiance: [
-                    to_radiance(loop_pts[0].1),
-                    to_radiance(loop_pts[1].1),
-                    to_radiance(loop_pts[2].1),
-                ],
-            });
-            continue;
-        }
-        // Fan from the centre; its value is the mean of the corners (bilinear centre value).
-        let mut centre_value = [0.0; 3];
-        for &c in &e.corners {
-            let v = corner_value(c);
-            for ch in 0..3 {
-                centre_value[ch] += v[ch] / n as f64;
-            }
-        }
-        let centre = e
-            .corners
-            .iter()
-            .map(|&c| vertices[c as usize])
-            .sum::<DVec3>()
-            / n as f64;
-        for k in 0..loop_pts.len() {
-            let (p, vp) = loop_pts[k];
-            let (q, vq) = loop_pts[(k + 1) % loop_pts.len()];
-            out.push(ShadedTriangle {
-                positions: [centre, p, q],
-                radiance: [to_radiance(centre_value), to_radiance(vp), to_radiance(vq)],
-            });
-        }
-    }
-    out
+    DisplayMesh::with_conformity(vertices, elements, radiosity, shading, conformity)
+        .shaded_triangles(elements, &|_| false, eye)
 }
 
 /// A hanging vertex of the same surface (left by adaptive refinement) takes the value

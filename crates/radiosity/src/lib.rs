@@ -1,17 +1,29 @@
 //! radiosity: physically based diffuse global illumination by the radiosity method.
 //!
-//! The pipeline is the architecture; data flows one way:
+//! The pipeline is the architecture; data flows one way, one module per stage:
 //!
 //! ```text
-//! Scene ──mesh──▶ Mesh ──formfactor──▶ coupling ──solve──▶ Solution ──render / report──▶ image, JSON
+//! Scene ──mesh──▶ Mesh ──formfactor──▶ coupling ──solve──▶ Solution ──display / render / report──▶ image, JSON
 //! ```
+//!
+//! - [`scene`] (with [`light`], [`cornell`] and the readers in [`io`]): surfaces, materials,
+//!   light sources, camera;
+//! - [`geometry`]: convex polygons, the one clipper and the one lattice subdivider;
+//! - [`mesh`]: patches and elements, contact lines, adaptive refinement;
+//! - [`accel`]: the BVH and the visibility query;
+//! - [`formfactor`]: form-factor kernels on geometry, and mesh engines built on them;
+//! - [`coupling`]: which elements exchange light at what level (dense, columns on the fly);
+//! - [`solve`]: direct, Jacobi, Gauss–Seidel, progressive refinement, each reporting its
+//!   steps to an observer;
+//! - [`display`] and [`render`]: the crack-free display mesh and the rasteriser;
+//! - [`report`]: per-object values in physical units; [`pipeline`]: the stages in one call.
 //!
 //! Units: lengths in metres, emitted radiance L_e in W·m⁻²·sr⁻¹, radiosity, exitance and
 //! irradiance in W·m⁻², power in W.
 
 pub mod accel;
-pub mod compare;
 pub mod cornell;
+pub mod coupling;
 pub mod display;
 pub mod formfactor;
 pub mod geometry;
@@ -20,9 +32,15 @@ pub mod light;
 pub mod mesh;
 pub mod pipeline;
 pub mod progress;
-pub mod refine;
 pub mod render;
 pub mod report;
 pub mod scene;
-pub mod sequence;
+pub mod settings;
 pub mod solve;
+
+pub use coupling::Coupling;
+pub use formfactor::FormFactorMethod;
+pub use mesh::{Mesh, MeshOptions};
+pub use pipeline::{solve_scene, SolveSettings, Solved};
+pub use scene::{Camera, Material, Scene, Surface};
+pub use solve::{Solution, SolveOptions, SolverKind};

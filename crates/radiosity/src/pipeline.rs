@@ -1,38 +1,49 @@
-//! The whole method in one call: scene → mesh → form factors → solution, and solution →
-//! image. The command-line tool and the integration tests both go through here.
+//! The whole method in one call: scene → mesh → form factors → coupling → solution, and
+//! solution → image. The command-line tool, the studies and the integration tests all go
+//! through here.
 
-use crate::display::{shaded_triangles, Conformity, Shading};
-use crate::formfactor::{FormFactorMethod, Visibility};
-use crate::mesh::{Element, Mesh, MeshError, MeshOptions};
+use crate::accel::Visibility;
+use crate::coupling::{Columns, Coupling, Dense, NearField};
+use crate::display::{DisplayMesh, Shading};
+use crate::formfactor::{engine, FormFactorMethod};
+use crate::mesh::{Element, Mesh, MeshError, MeshOptions, RefineOptions};
 use crate::progress::Progress;
-use crate::refine::RefineOptions;
 use crate::render::{render, Image, RenderError, RenderOptions};
 use crate::scene::{Camera, Scene};
-use crate::solve::{solve, Solution, SolveError, SolveOptions};
+use crate::solve::{solve, NoObserver, Observer, Solution, SolveError, SolveOptions, SolverKind};
 use glam::DVec3;
 
-/// Everything that decides how a scene is solved.
+/// Everything that decides how a scene is meshed and solved.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct SolveSettings {
+    /// How finely to mesh.
     pub mesh: MeshOptions,
+    /// The form-factor method.
     pub form_factor: FormFactorMethod,
+    /// The solver and its stopping rule.
     pub solve: SolveOptions,
 }
 
 /// A solved scene.
 pub struct Solved {
+    /// The mesh the solution lives on.
     pub mesh: Mesh,
+    /// Radiosity and irradiance per element.
     pub solution: Solution,
+    /// The form-factor method used.
     pub form_factor: FormFactorMethod,
 }
 
 /// Why solving failed.
 #[derive(Debug, thiserror::Error)]
 pub enum PipelineError {
+    /// Meshing failed.
     #[error("meshing")]
     Mesh(#[from] MeshError),
+    /// Solving failed.
     #[error("solving")]
     Solve(#[from] SolveError),
+    /// Rendering failed.
     #[error("rendering")]
     Render(#[from] RenderError),
 }
@@ -43,12 +54,18 @@ pub fn solve_scene(
     settings: &SolveSettings,
     progress: &dyn Progress,
 ) -> Result<Solved, PipelineError> {
+    solve_scene_observed(scene, settings, progress, &mut NoObserver)
+}
+
+/// Meshes and solves a scene, reporting the solver's steps to `observer`.
+pub fn solve_scene_observed(
+    scene: &Scene,
+    settings: &SolveSettings,
+    progress: &dyn Progress,
+    observer: &mut dyn Observer,
+) -> Result<Solved, PipelineError> {
     let mesh = Mesh::build(scene, &settings.mesh)?;
-    let solution = {
-        let visibility = Visibility::new(&mesh);
-        let ff = settings.form_factor.engine(&mesh, &visibility);
-        solve(&mesh, ff.as_ref(), &settings.solve, progress)?
-    };
+    let solution = solve_mesh(&mesh, settings, progress, observer)?;
     Ok(Solved {
         mesh,
         solution,
@@ -56,9 +73,71 @@ pub fn solve_scene(
     })
 }
 
+/// Bytes a solver needs beyond the mesh: the dense coupling (and the direct solver's patch
+/// matrix and LU factors, 5 m² values) for the matrix solvers; nothing up front for
+/// progressive refinement (its column cache takes what the limit leaves).
+pub fn solver_memory(solver: SolverKind, elements: usize, patches: usize) -> u128 {
+    let m = patches as u128;
+    match solver {
+        SolverKind::Progressive => 0,
+        SolverKind::Direct => Dense::bytes_for(elements, patches) + 5 * 8 * m * m,
+        _ => Dense::bytes_for(elements, patches),
+    }
+}
+
+/// Refuses a solve that would not fit in `settings.solve.memory_limit`.
+pub fn check_memory(
+    settings: &SolveOptions,
+    elements: usize,
+    patches: usize,
+) -> Result<(), SolveError> {
+    let needed = solver_memory(settings.solver, elements, patches);
+    if needed > settings.memory_limit as u128 {
+        return Err(SolveError::OutOfMemory {
+            solver: settings.solver,
+            needed_mib: (needed >> 20).min(u64::MAX as u128) as u64,
+            limit_mib: settings.memory_limit >> 20,
+            elements,
+            patches,
+        });
+    }
+    Ok(())
+}
+
+/// Solves a meshed scene: visibility, the link-level oracle, the form-factor engine, the
+/// coupling the solver needs (dense for the matrix solvers, columns on the fly for
+/// progressive refinement), then the solver.
+pub fn solve_mesh(
+    mesh: &Mesh,
+    settings: &SolveSettings,
+    progress: &dyn Progress,
+    observer: &mut dyn Observer,
+) -> Result<Solution, PipelineError> {
+    check_memory(&settings.solve, mesh.elements.len(), mesh.patches.len())?;
+    let visibility = Visibility::new(mesh);
+    let near = NearField::decide(mesh);
+    let engine = engine(settings.form_factor, mesh, &visibility, &near.per_element);
+    let solution = match settings.solve.solver {
+        SolverKind::Progressive => {
+            let coupling = Columns::new(
+                mesh,
+                engine.as_ref(),
+                &near,
+                settings.solve.memory_limit / 2,
+            );
+            solve(&coupling, &settings.solve, observer)?
+        }
+        _ => {
+            let coupling = Dense::compute(mesh, engine.as_ref(), &near, progress);
+            solve(&coupling as &dyn Coupling, &settings.solve, observer)?
+        }
+    };
+    Ok(solution)
+}
+
 /// Meshes coarsely, solves, and refines where the radiosity gradient is high (see
-/// [`crate::refine`]), re-solving after each pass, until nothing needs splitting, the depth
-/// limit is reached or the element budget `refine.max_elements` is used.
+/// [`crate::mesh::refine`]), re-solving after each pass, until nothing needs splitting, the
+/// depth limit is reached or the element budget `refine.max_elements` is used.
 ///
 /// The coarse mesh is [`coarse_mesh_options`] of `settings.mesh`.
 pub fn solve_scene_adaptive(
@@ -67,15 +146,22 @@ pub fn solve_scene_adaptive(
     refine: &RefineOptions,
     progress: &dyn Progress,
 ) -> Result<Solved, PipelineError> {
+    solve_scene_adaptive_observed(scene, settings, refine, progress, &mut NoObserver)
+}
+
+/// [`solve_scene_adaptive`], reporting every solve's steps to `observer`.
+pub fn solve_scene_adaptive_observed(
+    scene: &Scene,
+    settings: &SolveSettings,
+    refine: &RefineOptions,
+    progress: &dyn Progress,
+    observer: &mut dyn Observer,
+) -> Result<Solved, PipelineError> {
     let coarse = coarse_mesh_options(&settings.mesh);
     let mut mesh = Mesh::build(scene, &coarse)?;
     loop {
-        let solution = {
-            let visibility = Visibility::new(&mesh);
-            let ff = settings.form_factor.engine(&mesh, &visibility);
-            solve(&mesh, ff.as_ref(), &settings.solve, progress)?
-        };
-        let marked = crate::refine::mark(&mesh, &solution.radiosity, refine);
+        let solution = solve_mesh(&mesh, settings, progress, observer)?;
+        let marked = crate::mesh::refine::mark(&mesh, &solution.radiosity, refine);
         if !marked.iter().any(|m| *m) {
             return Ok(Solved {
                 mesh,
@@ -83,7 +169,7 @@ pub fn solve_scene_adaptive(
                 form_factor: settings.form_factor,
             });
         }
-        mesh = crate::refine::refine(&mesh, &marked);
+        mesh = crate::mesh::refine::refine(&mesh, &marked);
     }
 }
 
@@ -102,8 +188,11 @@ pub fn coarse_mesh_options(uniform: &MeshOptions) -> MeshOptions {
 
 /// What to draw: elements with their radiosity (W·m⁻²).
 pub struct Shaded<'a> {
+    /// Mesh vertices, m.
     pub vertices: &'a [DVec3],
+    /// The elements.
     pub elements: &'a [Element],
+    /// Radiosity per element, W·m⁻².
     pub radiosity: &'a [[f64; 3]],
 }
 
@@ -115,15 +204,8 @@ pub fn render_elements(
     wireframe: bool,
     options: &RenderOptions,
 ) -> Result<Image, PipelineError> {
-    let conformity = Conformity::find(shaded.vertices, shaded.elements);
-    let triangles = shaded_triangles(
-        shaded.vertices,
-        shaded.elements,
-        shaded.radiosity,
-        shading,
-        &conformity,
-        camera.eye,
-    );
+    let display = DisplayMesh::build(shaded.vertices, shaded.elements, shaded.radiosity, shading);
+    let triangles = display.shaded_triangles(shaded.elements, &|_| false, camera.eye);
     let edges = if wireframe {
         crate::display::element_edges(shaded.vertices, shaded.elements)
     } else {

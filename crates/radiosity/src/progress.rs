@@ -20,3 +20,92 @@ impl Progress for NoProgress {
     fn inc(&self, _n: u64) {}
     fn finish(&self) {}
 }
+
+/// Estimates the time a solver needs to bring a converging quantity (a residual, an unshot
+/// fraction) down to its tolerance, from how fast ln r has been falling recently.
+///
+/// Progress is measured in log space, f = ln(r₀/r) / ln(r₀/tol) ∈ [0, 1] (each decade
+/// counts the same), and the time left is ln(r/tol) divided by the rate at which ln r fell
+/// over the recent window: the last third of the elapsed time, so that a rate that slows
+/// down as the solve goes on (progressive refinement's) is followed rather than averaged
+/// away.
+#[derive(Debug, Clone)]
+pub struct ConvergenceEta {
+    tolerance: f64,
+    first: Option<(f64, f64)>,
+    history: std::collections::VecDeque<(f64, f64)>,
+}
+
+impl ConvergenceEta {
+    /// An estimator for a quantity that stops at `tolerance` (> 0).
+    pub fn new(tolerance: f64) -> Self {
+        Self {
+            tolerance: tolerance.max(f64::MIN_POSITIVE),
+            first: None,
+            history: std::collections::VecDeque::new(),
+        }
+    }
+
+    /// Records the quantity `r` at `seconds` since the start.
+    pub fn update(&mut self, seconds: f64, r: f64) {
+        if !(r.is_finite() && r > 0.0) {
+            return;
+        }
+        let sample = (seconds, r.ln());
+        if self.first.is_none() {
+            self.first = Some(sample);
+        }
+        self.history.push_back(sample);
+        // Keep the window: samples within the last third of the elapsed time, at least two.
+        let horizon = seconds - (seconds - self.first.map_or(0.0, |f| f.0)) / 3.0;
+        while self.history.len() > 2 && self.history[1].0 <= horizon {
+            self.history.pop_front();
+        }
+    }
+
+    /// The fraction of the way done, in log space, 0 to 1.
+    pub fn fraction(&self) -> f64 {
+        match (self.first, self.history.back()) {
+            (Some((_, l0)), Some(&(_, l))) => {
+                let total = l0 - self.tolerance.ln();
+                if total <= 0.0 {
+                    1.0
+                } else {
+                    ((l0 - l) / total).clamp(0.0, 1.0)
+                }
+            }
+            _ => 0.0,
+        }
+    }
+
+    /// Seconds left, if the quantity has been falling.
+    pub fn eta(&self) -> Option<f64> {
+        let (&(t0, l0), &(t1, l1)) = (self.history.front()?, self.history.back()?);
+        let rate = (l0 - l1) / (t1 - t0);
+        if !(rate > 0.0 && rate.is_finite()) {
+            return None;
+        }
+        Some(((l1 - self.tolerance.ln()) / rate).max(0.0))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn eta_is_exact_for_geometric_convergence() {
+        // r = 0.5^t: ln r falls by ln 2 per second; from r = 2^-3 to 2^-10 takes 7 s.
+        let mut eta = ConvergenceEta::new(2f64.powi(-10));
+        for k in 0..=3 {
+            eta.update(k as f64, 0.5f64.powi(k));
+        }
+        assert!((eta.eta().unwrap() - 7.0).abs() < 1e-9);
+        assert!((eta.fraction() - 0.3).abs() < 1e-12);
+        // Not falling: no estimate.
+        let mut flat = ConvergenceEta::new(1e-3);
+        flat.update(0.0, 0.5);
+        flat.update(1.0, 0.5);
+        assert!(flat.eta().is_none());
+    }
+}

@@ -5,11 +5,11 @@ use glam::DVec3;
 use radiosity::cornell::cornell_box;
 use radiosity::display::Shading;
 use radiosity::mesh::MeshOptions;
+use radiosity::mesh::RefineOptions;
 use radiosity::pipeline::{
     render_elements, solve_scene, solve_scene_adaptive, Shaded, SolveSettings, Solved,
 };
 use radiosity::progress::NoProgress;
-use radiosity::refine::RefineOptions;
 use radiosity::render::RenderOptions;
 use radiosity::report::Report;
 use radiosity::scene::Camera;

@@ -10,7 +10,7 @@ use radiosity::formfactor::pair::{
     solve_pair, Estimate, PairProblem, PairResult, PairSettings, Source,
 };
 use radiosity::formfactor::table::reference_cases;
-use radiosity::formfactor::{FormFactorMethod, Visibility};
+use radiosity::formfactor::{engine, FormFactorMethod, Visibility};
 use radiosity::geometry::Polygon;
 use radiosity::mesh::{Mesh, MeshOptions};
 use radiosity::pipeline::{solve_scene, SolveSettings};
@@ -447,7 +447,7 @@ fn rows_sum_to_one_inside_a_closed_subdivided_cube() {
     assert_eq!((mesh.elements.len(), mesh.patches.len()), (96, 24));
     let visibility = Visibility::new(&mesh);
     for &method in FormFactorMethod::ALL {
-        let engine = method.engine(&mesh, &visibility);
+        let engine = engine(method, &mesh, &visibility, &[]);
         let mut row = vec![0.0f32; mesh.patches.len()];
         let mut worst = 0.0f64;
         for e in 0..mesh.elements.len() {
@@ -491,9 +491,9 @@ fn mesh_engines_agree_with_the_exact_element_to_patch_factor() {
     )
     .unwrap();
     let visibility = Visibility::new(&mesh);
-    let exact = FormFactorMethod::AnalyticPolygon.engine(&mesh, &visibility);
+    let exact = engine(FormFactorMethod::AnalyticPolygon, &mesh, &visibility, &[]);
     for &method in FormFactorMethod::ALL {
-        let engine = method.engine(&mesh, &visibility);
+        let engine = engine(method, &mesh, &visibility, &[]);
         let (mut err, mut total) = (0.0, 0.0);
         let mut row = vec![0.0f32; mesh.patches.len()];
         for (e, el) in mesh.elements.iter().enumerate() {

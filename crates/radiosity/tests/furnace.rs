@@ -3,13 +3,14 @@
 //! emitting, the one-element-per-face system has a known exact answer.
 
 use glam::DVec3;
-use radiosity::formfactor::{FormFactorMethod, Visibility};
+use radiosity::formfactor::FormFactorMethod;
 use radiosity::geometry::Polygon;
 use radiosity::mesh::{Mesh, MeshOptions};
+use radiosity::pipeline::{solve_mesh, SolveSettings};
 use radiosity::progress::NoProgress;
 use radiosity::report::Report;
 use radiosity::scene::{Material, MaterialId, Origin, Scene, Surface};
-use radiosity::solve::{solve, SolveOptions, SolverKind};
+use radiosity::solve::{NoObserver, SolveOptions, SolverKind};
 use serde_json::Value;
 
 fn furnace() -> Value {
@@ -49,7 +50,11 @@ fn cube(rho: f64, emits: impl Fn(&str) -> f64) -> Scene {
     let mut surfaces = Vec::new();
     for (i, (name, v)) in FACES.iter().enumerate() {
         let e = emits(name);
-        materials.push(Material::new(name.to_string(), [rho; 3], [e / std::f64::consts::PI; 3]));
+        materials.push(Material::new(
+            name.to_string(),
+            [rho; 3],
+            [e / std::f64::consts::PI; 3],
+        ));
         surfaces.push(Surface {
             object: name.to_string(),
             group: name.to_string(),
@@ -75,16 +80,17 @@ fn run_with(
     method: FormFactorMethod,
 ) -> (Mesh, Report) {
     let mesh = Mesh::build(scene, &mesh_opts).unwrap();
-    let vis = Visibility::new(&mesh);
-    let ff = method.engine(&mesh, &vis);
-    let opts = SolveOptions {
-        solver,
-        tolerance: tol,
-        ..Default::default()
+    let settings = SolveSettings {
+        mesh: mesh_opts,
+        form_factor: method,
+        solve: SolveOptions {
+            solver,
+            tolerance: tol,
+            ..Default::default()
+        },
     };
-    let sol = solve(&mesh, ff.as_ref(), &opts, &NoProgress).unwrap();
+    let sol = solve_mesh(&mesh, &settings, &NoProgress, &mut NoObserver).unwrap();
     let report = Report::new("furnace", &mesh, &sol, method.name());
-    drop(ff);
     (mesh, report)
 }
 

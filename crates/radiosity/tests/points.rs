@@ -5,7 +5,8 @@
 
 use glam::DVec3;
 use radiosity::formfactor::analytic_point::point_to_polygon;
-use radiosity::formfactor::{subdivide, Visibility};
+use radiosity::formfactor::Visibility;
+use radiosity::geometry::subdivide;
 use radiosity::mesh::{Mesh, MeshOptions};
 use serde_json::Value;
 

@@ -1,7 +1,7 @@
 //! `analytic-point` and `analytic-polygon`: the exact unoccluded form factors as mesh engines
 //! and pair solvers, with visibility estimated by shadow rays.
 //!
-//! - `analytic-point` ([`AnalyticPoint`]): the differential-area-to-polygon form factor of
+//! - `analytic-point` ([`AnalyticPointKernel`]): the differential-area-to-polygon form factor of
 //!   Lambert's contour formula (Baum, Rushmeier & Winget 1989, eq. 1;
 //!   [`super::analytic_point::point_to_polygon`]),
 //!
@@ -12,7 +12,7 @@
 //!   On a pair problem with a polygon `from` the same exact kernel is averaged over `from` by
 //!   globally adaptive cubature ([`average_over_polygon`], to 1e-9), so that the answer is
 //!   the area-to-area factor F = (1/A_from) ∫ F_{dA_x→to} dA_x.
-//! - `analytic-polygon` ([`AnalyticPolygon`]): the exact polygon-to-polygon form factor by the
+//! - `analytic-polygon` ([`AnalyticPolygonKernel`]): the exact polygon-to-polygon form factor by the
 //!   double contour integral (Sparrow 1963; Schröder & Hanrahan 1993;
 //!   [`super::analytic_polygon::polygon_to_polygon`]),
 //!
@@ -30,20 +30,20 @@
 //! half-hidden test), and otherwise approximates the shadow boundary at the resolution of the
 //! sub-areas.
 //!
-//! Both engines also take a single element as the source ([`FormFactors::element_pair`]), for
-//! the solver's near field, with the same formulas.
+//! Both are [`Kernel`]s: the mesh engines call them per element and patch, and per pair of
+//! elements for the near field.
 
 use super::analytic_point::point_to_polygon;
 use super::analytic_polygon::polygon_to_polygon;
+use super::kernel::{
+    polygon_centroid, visible_fraction, Division, Kernel, Receiver, SourcePolygon,
+};
 use super::pair::{Estimate, PairProblem, Source};
-use super::quadrature::element_points;
-use super::{sub_areas, FormFactors, Visibility};
-use crate::geometry::newell;
-use crate::mesh::Mesh;
+use super::{FormFactorMethod, Visibility};
+use crate::geometry::{newell, sub_areas};
 use glam::DVec3;
 use std::cmp::Ordering;
 use std::collections::BinaryHeap;
-use std::sync::OnceLock;
 
 /// Visibility probes per source axis in the mesh engines (probe² rays per receiver point).
 pub const PROBE: usize = 2;
@@ -60,268 +60,70 @@ const CUBATURE_TOLERANCE: f64 = 1e-9;
 /// visibility makes the integrand discontinuous.
 const CUBATURE_MAX_SPLITS: usize = 4000;
 
-/// A source polygon prepared for visibility estimates: probe points and penumbra sub-areas.
-pub struct ProbedSource {
-    pub vertices: Vec<DVec3>,
-    pub normal: DVec3,
-    probes: Vec<DVec3>,
-    sub_areas: Vec<Vec<DVec3>>,
-    sub_points: Vec<DVec3>,
-}
-
-impl ProbedSource {
-    /// About `probe²` probe points (sub-area centroids) and `penumbra²` penumbra sub-areas.
-    pub fn new(vertices: &[DVec3], probe: usize, penumbra: usize) -> Self {
-        let probes = sub_areas_centroids(&sub_areas(vertices, probe));
-        let pieces = sub_areas(vertices, penumbra);
-        Self {
-            vertices: vertices.to_vec(),
-            normal: newell(vertices).0,
-            probes,
-            sub_points: sub_areas_centroids(&pieces),
-            sub_areas: pieces,
-        }
-    }
-}
-
-impl ProbedSource {
-    /// From given probe points and penumbra sub-areas (their centroids are computed).
-    pub(crate) fn from_parts(
-        vertices: Vec<DVec3>,
-        normal: DVec3,
-        probes: Vec<DVec3>,
-        sub_areas: Vec<Vec<DVec3>>,
-    ) -> Self {
-        Self {
-            vertices,
-            normal,
-            probes,
-            sub_points: sub_areas_centroids(&sub_areas),
-            sub_areas,
-        }
-    }
-}
-
-fn sub_areas_centroids(pieces: &[Vec<DVec3>]) -> Vec<DVec3> {
-    pieces.iter().map(|p| area_centroid(p)).collect()
-}
-
 /// Area centroid of a planar convex polygon.
 pub fn area_centroid(v: &[DVec3]) -> DVec3 {
-    let (mut sum, mut total) = (DVec3::ZERO, 0.0);
-    for w in v[1..].windows(2) {
-        let a = (w[0] - v[0]).cross(w[1] - v[0]).length();
-        sum += a * (v[0] + w[0] + w[1]) / 3.0;
-        total += a;
-    }
-    if total > 0.0 {
-        sum / total
-    } else {
-        v.iter().copied().sum::<DVec3>() / v.len() as f64
-    }
+    polygon_centroid(v)
 }
 
-/// The fraction of source `s` visible from the receiver points `receivers` (weights summing
-/// to 1, normal `n`), from 0 to 1.
-///
-/// Probe stage: with one receiver point, or with `all_probes`, every point casts a ray to
-/// every probe; otherwise each casts one, rotating through the probes (Wallace et al.'s cheap
-/// test for elements). All visible gives exactly 1, none exactly 0. Otherwise the fraction is
-/// Σ_x w_x Σ_k F_{x→ΔA_k} V(x, y_k) / Σ_x w_x Σ_k F_{x→ΔA_k} over the penumbra sub-areas ΔA_k
-/// with centroids y_k, F the exact point-to-polygon factor.
-pub fn visible_fraction(
-    vis: &Visibility,
-    receivers: &[(DVec3, f64)],
-    n: DVec3,
-    s: &ProbedSource,
-    all_probes: bool,
-) -> f64 {
-    let (mut visible, mut total) = (0usize, 0usize);
-    let per_point = if receivers.len() == 1 || all_probes {
-        s.probes.len()
-    } else {
-        1
-    };
-    for (i, (x, _)) in receivers.iter().enumerate() {
-        for k in 0..per_point {
-            let y = s.probes[(i + k) % s.probes.len()];
-            total += 1;
-            visible += usize::from(vis.visible(*x, n, y, s.normal));
-        }
-    }
-    if visible == total {
-        return 1.0;
-    }
-    if visible == 0 {
-        return 0.0;
-    }
-    let (mut seen, mut all) = (0.0, 0.0);
-    for (x, w) in receivers {
-        for (sub, y) in s.sub_areas.iter().zip(&s.sub_points) {
-            let f = w * point_to_polygon(*x, n, sub, s.normal);
-            if f > 0.0 {
-                all += f;
-                if vis.visible(*x, n, *y, s.normal) {
-                    seen += f;
-                }
-            }
-        }
-    }
-    if all > 0.0 {
-        seen / all
-    } else {
-        visible as f64 / total as f64
-    }
-}
+/// The `analytic-point` kernel: F_{R→S} ≈ F_{dA(centre of R)→S} × V, Lambert's exact contour
+/// formula at the receiver's centre (the classic point approximation of a finite receiver),
+/// V from probe rays from that point (see the module docs).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct AnalyticPointKernel;
 
-/// The `analytic-point` engine: F_{e→p} ≈ F_{dA(centre_e)→p} × V, exact contour at the
-/// element's centre, V from probe rays (see the module docs).
-pub struct AnalyticPoint<'a> {
-    mesh: &'a Mesh,
-    visibility: &'a Visibility,
-    sources: Vec<ProbedSource>,
-    element_sources: ElementSources,
-}
-
-impl<'a> AnalyticPoint<'a> {
-    pub fn new(mesh: &'a Mesh, visibility: &'a Visibility) -> Self {
-        Self {
-            mesh,
-            visibility,
-            sources: probed_patches(mesh),
-            element_sources: ElementSources::new(mesh),
-        }
-    }
-}
-
-/// Elements as sources for the near field, prepared on first use.
-struct ElementSources(Vec<OnceLock<ProbedSource>>);
-
-impl ElementSources {
-    fn new(mesh: &Mesh) -> Self {
-        Self((0..mesh.elements.len()).map(|_| OnceLock::new()).collect())
+impl Kernel for AnalyticPointKernel {
+    fn method(&self) -> FormFactorMethod {
+        FormFactorMethod::AnalyticPoint
     }
 
-    fn get(&self, mesh: &Mesh, e: usize) -> &ProbedSource {
-        self.0[e].get_or_init(|| ProbedSource::new(&corners(mesh, e), PROBE, PENUMBRA))
+    fn source(&self, vertices: &[DVec3]) -> SourcePolygon {
+        SourcePolygon::new(vertices, PROBE, PENUMBRA, Division::SubAreas)
     }
-}
 
-fn probed_patches(mesh: &Mesh) -> Vec<ProbedSource> {
-    mesh.patches
-        .iter()
-        .map(|p| ProbedSource::new(p.polygon.vertices(), PROBE, PENUMBRA))
-        .collect()
-}
-
-impl AnalyticPoint<'_> {
-    fn receive(&self, element: usize, s: &ProbedSource) -> f64 {
-        let e = &self.mesh.elements[element];
-        let f = point_to_polygon(e.centre, e.normal, &s.vertices, s.normal);
+    fn form_factor(&self, r: &Receiver, s: &SourcePolygon, visibility: &Visibility) -> f64 {
+        let f = point_to_polygon(r.centre, r.normal, &s.vertices, s.normal);
         if f <= 0.0 {
             return 0.0;
         }
-        f * visible_fraction(self.visibility, &[(e.centre, 1.0)], e.normal, s, true)
+        f * visible_fraction(visibility, &[(r.centre, 1.0)], r.normal, s, true)
     }
 }
 
-impl FormFactors for AnalyticPoint<'_> {
-    fn name(&self) -> &'static str {
-        "analytic-point"
+/// The `analytic-polygon` kernel: F_{R→S} = F^exact_{R→S} × V, the exact unoccluded
+/// polygon-to-polygon factor times the visible fraction from the receiver's visibility points
+/// (2 × 2 on a polygon); the point form for a point receiver.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct AnalyticPolygonKernel;
+
+impl Kernel for AnalyticPolygonKernel {
+    fn method(&self) -> FormFactorMethod {
+        FormFactorMethod::AnalyticPolygon
     }
 
-    fn pair(&self, element: usize, patch: usize) -> f64 {
-        if self.mesh.elements[element].surface == self.mesh.patches[patch].surface {
-            return 0.0;
+    fn source(&self, vertices: &[DVec3]) -> SourcePolygon {
+        SourcePolygon::new(vertices, PROBE, PENUMBRA, Division::SubAreas)
+    }
+
+    fn receiver_order(&self, _size: f64, _clearance: &dyn Fn() -> f64) -> usize {
+        2
+    }
+
+    fn form_factor(&self, r: &Receiver, s: &SourcePolygon, visibility: &Visibility) -> f64 {
+        if r.is_point() {
+            return AnalyticPointKernel.form_factor(r, s, visibility);
         }
-        self.receive(element, &self.sources[patch])
-    }
-
-    fn element_pair(&self, element: usize, source: usize) -> Option<f64> {
-        let (e, s) = (&self.mesh.elements[element], &self.mesh.elements[source]);
-        if e.surface == s.surface {
-            return Some(0.0);
-        }
-        Some(self.receive(element, self.element_sources.get(self.mesh, source)))
-    }
-
-    fn resolves_elements(&self) -> bool {
-        true
-    }
-}
-
-/// The corners of element `e`.
-fn corners(mesh: &Mesh, e: usize) -> Vec<DVec3> {
-    mesh.elements[e]
-        .corners
-        .iter()
-        .map(|&c| mesh.vertices[c as usize])
-        .collect()
-}
-
-/// The `analytic-polygon` engine: F_{e→p} = F^exact_{e→p} × V, the exact unoccluded
-/// polygon-to-polygon factor times the visible fraction from 2×2 receiver points.
-pub struct AnalyticPolygon<'a> {
-    mesh: &'a Mesh,
-    visibility: &'a Visibility,
-    sources: Vec<ProbedSource>,
-    element_sources: ElementSources,
-}
-
-impl<'a> AnalyticPolygon<'a> {
-    pub fn new(mesh: &'a Mesh, visibility: &'a Visibility) -> Self {
-        Self {
-            mesh,
-            visibility,
-            sources: probed_patches(mesh),
-            element_sources: ElementSources::new(mesh),
-        }
-    }
-}
-
-impl AnalyticPolygon<'_> {
-    fn receive(&self, element: usize, s: &ProbedSource) -> f64 {
-        let e = &self.mesh.elements[element];
-        let corners = corners(self.mesh, element);
         // Cheap culls before the contour integral: either polygon wholly behind the other.
         let front = |v: &DVec3, o: DVec3, n: DVec3| (*v - o).dot(n) > 0.0;
-        if !s.vertices.iter().any(|v| front(v, e.centre, e.normal))
-            || !corners.iter().any(|v| front(v, s.vertices[0], s.normal))
+        if !s.vertices.iter().any(|v| front(v, r.centre, r.normal))
+            || !r.vertices.iter().any(|v| front(v, s.vertices[0], s.normal))
         {
             return 0.0;
         }
-        let f = polygon_to_polygon(&corners, &s.vertices);
+        let f = polygon_to_polygon(&r.vertices, &s.vertices);
         if f.is_nan() || f <= 0.0 {
             return 0.0;
         }
-        let mut receivers = Vec::with_capacity(4);
-        element_points(&corners, e.centre, 2, &mut receivers);
-        f * visible_fraction(self.visibility, &receivers, e.normal, s, false)
-    }
-}
-
-impl FormFactors for AnalyticPolygon<'_> {
-    fn name(&self) -> &'static str {
-        "analytic-polygon"
-    }
-
-    fn pair(&self, element: usize, patch: usize) -> f64 {
-        if self.mesh.elements[element].surface == self.mesh.patches[patch].surface {
-            return 0.0;
-        }
-        self.receive(element, &self.sources[patch])
-    }
-
-    fn element_pair(&self, element: usize, source: usize) -> Option<f64> {
-        let (e, s) = (&self.mesh.elements[element], &self.mesh.elements[source]);
-        if e.surface == s.surface {
-            return Some(0.0);
-        }
-        Some(self.receive(element, self.element_sources.get(self.mesh, source)))
-    }
-
-    fn resolves_elements(&self) -> bool {
-        true
+        f * visible_fraction(visibility, &r.visibility_points, r.normal, s, false)
     }
 }
 
@@ -333,7 +135,7 @@ pub fn analytic_point_pair(problem: &PairProblem) -> Estimate {
     let vis = problem.occluder_visibility();
     let source = vis
         .as_ref()
-        .map(|_| ProbedSource::new(&problem.to, PAIR_PROBE, PAIR_PENUMBRA));
+        .map(|_| SourcePolygon::new(&problem.to, PAIR_PROBE, PAIR_PENUMBRA, Division::SubAreas));
     let kernel = |x: DVec3, n: DVec3| {
         let f = point_to_polygon(x, n, &problem.to, to_normal);
         match (&vis, &source) {
@@ -378,7 +180,8 @@ pub fn analytic_polygon_pair(problem: &PairProblem) -> Estimate {
     };
     let fraction = match problem.occluder_visibility() {
         Some(vis) if unoccluded > 0.0 => {
-            let source = ProbedSource::new(&problem.to, PAIR_PROBE, PAIR_PENUMBRA);
+            let source =
+                SourcePolygon::new(&problem.to, PAIR_PROBE, PAIR_PENUMBRA, Division::SubAreas);
             visible_fraction(&vis, &receivers, n, &source, true)
         }
         _ => 1.0,

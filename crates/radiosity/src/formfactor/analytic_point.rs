@@ -10,6 +10,7 @@
 //! tangent plane is seen) and contributes only if `x` is in front of it (surfaces are
 //! one-sided). The result is in [0, 1].
 
+use crate::geometry::{clip_convex, FixedPolygon};
 use glam::DVec3;
 use std::f64::consts::PI;
 
@@ -24,6 +25,15 @@ pub fn point_to_polygon(x: DVec3, n: DVec3, vertices: &[DVec3], polygon_normal: 
     let side = |v: &DVec3| (*v - x).dot(n);
     if vertices.iter().all(|v| side(v) >= 0.0) {
         contour_sum(x, n, vertices)
+    } else if vertices.len() < 16 {
+        // Clipping adds at most one vertex; small polygons stay on the stack.
+        let mut clipped = FixedPolygon::<DVec3, 16>::default();
+        clip_convex(vertices, side, &mut clipped);
+        if clipped.len >= 3 {
+            contour_sum(x, n, clipped.as_slice())
+        } else {
+            0.0
+        }
     } else {
         match crate::geometry::clip_to_halfspace(vertices, x, n) {
             Some(clipped) => contour_sum(x, n, &clipped),

@@ -195,37 +195,22 @@ fn centroid(poly: &[DVec3]) -> DVec3 {
 }
 
 /// The part of the convex polygon on the front side of the plane through `origin` with unit
-/// `normal` (Sutherland–Hodgman); `None` if nothing lies strictly in front.
+/// `normal` ([`crate::geometry::clip_convex`], distances within `PLANE_TOL` of the plane
+/// counted as on it); `None` if nothing lies strictly in front.
 fn clip_to_front(poly: &[DVec3], origin: DVec3, normal: DVec3) -> Option<Vec<DVec3>> {
-    let dist: Vec<f64> = poly
-        .iter()
-        .map(|&p| {
-            let d = normal.dot(p - origin);
-            if d.abs() <= PLANE_TOL {
-                0.0
-            } else {
-                d
-            }
-        })
-        .collect();
-    if dist.iter().all(|&d| d <= 0.0) {
+    let dist = |p: &DVec3| {
+        let d = normal.dot(*p - origin);
+        if d.abs() <= PLANE_TOL {
+            0.0
+        } else {
+            d
+        }
+    };
+    if poly.iter().all(|p| dist(p) <= 0.0) {
         return None;
     }
-    if dist.iter().all(|&d| d >= 0.0) {
-        return Some(poly.to_vec());
-    }
-    let n = poly.len();
-    let mut out = Vec::with_capacity(n + 1);
-    for i in 0..n {
-        let j = (i + 1) % n;
-        let (p, dp, q, dq) = (poly[i], dist[i], poly[j], dist[j]);
-        if dp >= 0.0 {
-            out.push(p);
-        }
-        if (dp > 0.0 && dq < 0.0) || (dp < 0.0 && dq > 0.0) {
-            out.push(p + (q - p) * (dp / (dp - dq)));
-        }
-    }
+    let mut out = Vec::with_capacity(poly.len() + 1);
+    crate::geometry::clip_convex(poly, dist, &mut out);
     Some(out)
 }
 

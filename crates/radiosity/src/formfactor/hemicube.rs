@@ -46,9 +46,11 @@
 //!
 //! See also: [`super::analytic_point`] (the exact unoccluded value of one hemi-cube).
 
+use super::kernel::{Division, Kernel, Receiver, SourcePolygon};
 use super::pair::{Estimate, PairProblem, Source};
 use super::quadrature::{element_points, gauss_legendre};
-use super::FormFactors;
+use super::{Engine, FormFactorMethod, Visibility};
+use crate::geometry::clip_convex;
 use crate::mesh::Mesh;
 use glam::DVec3;
 use rayon::prelude::*;
@@ -473,29 +475,6 @@ thread_local! {
     static BUFFERS: RefCell<Buffers> = RefCell::new(Buffers::default());
 }
 
-/// Sutherland–Hodgman clip of `input` against `m·p ≥ 0` into `output`.
-fn clip_plane(input: &[DVec3], m: DVec3, output: &mut Vec<DVec3>) {
-    output.clear();
-    let n = input.len();
-    if n == 0 {
-        return;
-    }
-    let mut a = input[n - 1];
-    let mut da = m.dot(a);
-    for &b in input {
-        let db = m.dot(b);
-        if (da >= 0.0) != (db >= 0.0) && da != db {
-            let t = da / (da - db);
-            output.push(a + (b - a) * t);
-        }
-        if db >= 0.0 {
-            output.push(b);
-        }
-        a = b;
-        da = db;
-    }
-}
-
 /// Rasterises every polygon of `scenes` into one tile and adds the ΔF of the pixels each
 /// front-facing polygon wins to `sums[id]`.
 fn render_tile(tile: &Tile, scenes: &[LocalScene], sums: &mut [f64]) {
@@ -539,7 +518,7 @@ fn raster_polygon(tile: &Tile, scene: &LocalScene, poly: &LocalPoly, bufs: &mut 
     for (m, bit) in tile.planes.iter().zip(tile.plane_bits) {
         // Only planes some vertex is strictly outside of can cut anything.
         if poly.any_outside & bit != 0 {
-            clip_plane(clip_a, *m, clip_b);
+            clip_convex(clip_a, |p| m.dot(*p), clip_b);
             std::mem::swap(clip_a, clip_b);
         }
     }
@@ -825,15 +804,17 @@ pub struct Hemicube<'a> {
     patch_area: Vec<f64>,
     /// Distance (m) hemi-cubes are lifted off their surface: 10⁻⁷ of the scene's diagonal.
     offset: f64,
-    /// The near field ([`super::NearField`] with κ = 1), whose patches are resolved into
-    /// their elements.
-    near: super::NearField,
+    /// Near patches of each element (sorted; from the coupling's link oracle), drawn as their
+    /// elements; empty when there is no near field.
+    near: &'a [Vec<u32>],
     /// Near-field links per element (source element, F_{e→e'}), rendered on first use.
     links: Vec<std::sync::OnceLock<Vec<(u32, f64)>>>,
 }
 
 impl<'a> Hemicube<'a> {
-    pub fn new(mesh: &'a Mesh, params: HemicubeParams) -> Self {
+    /// The engine over `mesh`; `near[e]` lists the patches element `e` links to element by
+    /// element (sorted), or `near` is empty for no near field.
+    pub fn new(mesh: &'a Mesh, params: HemicubeParams, near: &'a [Vec<u32>]) -> Self {
         let mut patches = PolySet::default();
         for (i, p) in mesh.patches.iter().enumerate() {
             patches.push(
@@ -867,7 +848,7 @@ impl<'a> Hemicube<'a> {
             elements,
             patch_area: mesh.patches.iter().map(|p| mesh.patch_area(p)).collect(),
             offset: 1e-7 * diagonal.max(f64::MIN_POSITIVE),
-            near: super::NearField::new(mesh, 1.0),
+            near,
             links: (0..mesh.elements.len())
                 .map(|_| std::sync::OnceLock::new())
                 .collect(),
@@ -878,7 +859,9 @@ impl<'a> Hemicube<'a> {
     /// drawn as their elements: the element-to-element links F_{e→e'} of the near field.
     fn near_links(&self, element: usize) -> &[(u32, f64)] {
         self.links[element].get_or_init(|| {
-            let near = &self.near.per_element[element];
+            let Some(near) = self.near.get(element) else {
+                return Vec::new();
+            };
             if near.is_empty() {
                 return Vec::new();
             }
@@ -971,9 +954,9 @@ impl<'a> Hemicube<'a> {
     }
 }
 
-impl FormFactors for Hemicube<'_> {
-    fn name(&self) -> &'static str {
-        "hemicube"
+impl Engine for Hemicube<'_> {
+    fn method(&self) -> FormFactorMethod {
+        FormFactorMethod::Hemicube
     }
 
     /// Computes the whole row of `element` and returns one entry: correct but costs a full
@@ -1003,17 +986,82 @@ impl FormFactors for Hemicube<'_> {
 
     /// From the element's near-field hemi-cube (rendered once per element, then cached);
     /// 0 for a source element outside its near field.
-    fn element_pair(&self, element: usize, source: usize) -> Option<f64> {
-        Some(
-            self.near_links(element)
-                .iter()
-                .find(|(s, _)| *s as usize == source)
-                .map_or(0.0, |(_, f)| *f),
-        )
+    fn element_pair(&self, element: usize, source: usize) -> f64 {
+        self.near_links(element)
+            .iter()
+            .find(|(s, _)| *s as usize == source)
+            .map_or(0.0, |(_, f)| *f)
+    }
+}
+
+/// The hemi-cube as a kernel on geometry: one hemi-cube at the receiver's centre (the
+/// method's own point approximation of a finite receiver, F_{R→S} ≈ F_{d(centre)→S}),
+/// lifted off it by 10⁻⁷ of the pair's size, on which the source and every triangle of the
+/// visibility query's scene inside the box spanned by the centre and the source are
+/// z-buffered; the source's share of the ΔF is the form factor. Triangles in the source's or
+/// the receiver's plane cannot block and are left out (they would tie with the source).
+pub struct HemicubeKernel {
+    params: HemicubeParams,
+    layout: Layout,
+}
+
+impl HemicubeKernel {
+    /// A kernel with the given resolution and jitter.
+    pub fn new(params: HemicubeParams) -> Self {
+        Self {
+            layout: Layout::new(params.resolution),
+            params,
+        }
+    }
+}
+
+impl Default for HemicubeKernel {
+    fn default() -> Self {
+        Self::new(HemicubeParams::default())
+    }
+}
+
+impl Kernel for HemicubeKernel {
+    fn method(&self) -> FormFactorMethod {
+        FormFactorMethod::Hemicube
     }
 
-    fn resolves_elements(&self) -> bool {
-        true
+    fn source(&self, vertices: &[DVec3]) -> SourcePolygon {
+        SourcePolygon::new(vertices, 1, 1, Division::Lattice)
+    }
+
+    fn form_factor(&self, r: &Receiver, s: &SourcePolygon, visibility: &Visibility) -> f64 {
+        let size = s.radius.max(r.centre.distance(s.centre));
+        let x = r.centre + r.normal * (1e-7 * size.max(f64::MIN_POSITIVE));
+        if (x - s.centre).dot(s.normal) <= 0.0 {
+            return 0.0; // behind the one-sided source
+        }
+        let mut set = PolySet::default();
+        set.push(&s.vertices, s.normal, u32::MAX, 0);
+        let (mut lo, mut hi) = (x, x);
+        for v in &s.vertices {
+            lo = lo.min(*v);
+            hi = hi.max(*v);
+        }
+        let mut candidates = Vec::new();
+        visibility
+            .bvh()
+            .triangles_in_box(lo.as_vec3(), hi.as_vec3(), &mut candidates);
+        let in_plane = |t: &[DVec3; 3], o: DVec3, n: DVec3| {
+            t.iter().all(|p| (*p - o).dot(n).abs() <= 1e-9 * size)
+        };
+        for (_, tri) in &candidates {
+            let t = tri.map(|p| p.as_dvec3());
+            if in_plane(&t, s.centre, s.normal) || in_plane(&t, r.centre, r.normal) {
+                continue;
+            }
+            let (n, area) = crate::geometry::newell(&t);
+            if area > 0.0 {
+                set.push(&t, n, u32::MAX, BLOCKED);
+            }
+        }
+        let frame = Frame::new(x, r.normal, jitter_angle(&self.params, 3, 0));
+        render(&self.layout, &frame, &set, u32::MAX, 1, false)[0]
     }
 }
 
@@ -1614,6 +1662,7 @@ mod tests {
                     jitter,
                     seed: 7,
                 },
+                &[],
             );
             for e in 0..mesh.elements.len() {
                 let row = hc.row_f64(e);
@@ -1644,7 +1693,7 @@ mod tests {
         // hemi-cube is lifted 1e-7 off the surface: negligible).
         let mesh = mesh_of(box_faces(DVec3::ZERO, DVec3::ONE, true), 0.25, 2);
         for res in [64, 256] {
-            let hc = Hemicube::new(&mesh, at(res));
+            let hc = Hemicube::new(&mesh, at(res), &[]);
             let tol = 2.0 * (2.0 / res as f64) / PI;
             for (e, el) in mesh.elements.iter().enumerate().step_by(7) {
                 let row = hc.row_f64(e);
@@ -1677,7 +1726,7 @@ mod tests {
             0.15,
             3,
         );
-        let hc = Hemicube::new(&mesh, at(64));
+        let hc = Hemicube::new(&mesh, at(64), &[]);
         let mut column = vec![0.0f32; mesh.elements.len()];
         for p in [0, 5, mesh.patches.len() - 1] {
             hc.column(p, &mut column);
@@ -1708,6 +1757,7 @@ mod tests {
                 jitter: true,
                 seed: 3,
             },
+            &[],
         );
         let serial: Vec<Vec<f64>> = (0..mesh.elements.len()).map(|e| hc.row_f64(e)).collect();
         let parallel: Vec<Vec<f64>> = (0..mesh.elements.len())

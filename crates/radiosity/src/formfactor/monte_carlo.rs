@@ -21,8 +21,9 @@
 //! Random numbers: PCG-64 (MCG variant) seeded from the seed and the element (or batch)
 //! index, so results are deterministic whatever the thread count.
 
+use super::kernel::{Division, Kernel, Receiver, SourcePolygon};
 use super::pair::{Estimate, PairProblem, Source};
-use super::{FormFactors, Visibility};
+use super::{Engine, FormFactorMethod, Visibility};
 use crate::geometry::newell;
 use crate::mesh::Mesh;
 use glam::{DVec2, DVec3};
@@ -212,6 +213,58 @@ pub fn monte_carlo_pair(problem: &PairProblem, rays: usize, seed: u64) -> Estima
     }
 }
 
+/// The Monte Carlo kernel: `rays` cosine-distributed rays from uniform points of the
+/// receiver (or from the point), counted when they reach the front of the source before any
+/// surface of the visibility query's scene blocks them. Deterministic in `seed` and the
+/// receiver's position.
+#[derive(Debug, Clone, Copy)]
+pub struct MonteCarloKernel {
+    /// Rays per pair.
+    pub rays: usize,
+    /// Seed.
+    pub seed: u64,
+}
+
+impl Default for MonteCarloKernel {
+    fn default() -> Self {
+        Self {
+            rays: DEFAULT_RAYS,
+            seed: DEFAULT_SEED,
+        }
+    }
+}
+
+impl Kernel for MonteCarloKernel {
+    fn method(&self) -> FormFactorMethod {
+        FormFactorMethod::MonteCarlo
+    }
+
+    fn source(&self, vertices: &[DVec3]) -> SourcePolygon {
+        SourcePolygon::new(vertices, 1, 1, Division::Lattice)
+    }
+
+    fn form_factor(&self, r: &Receiver, s: &SourcePolygon, visibility: &Visibility) -> f64 {
+        let target = Target::new(&s.vertices);
+        let sampler = (!r.is_point()).then(|| AreaSampler::new(&r.vertices));
+        let key = r.centre.to_array().map(f64::to_bits);
+        let mut rng = stream(
+            self.seed,
+            key[0] ^ key[1].rotate_left(21) ^ key[2].rotate_left(42),
+        );
+        let mut hits = 0usize;
+        for _ in 0..self.rays.max(1) {
+            let x = sampler.as_ref().map_or(r.centre, |a| a.sample(&mut rng));
+            let d = cosine_direction(r.normal, &mut rng);
+            let Some(t) = target.hit(x, d) else { continue };
+            let y = x + d * t;
+            if visibility.visible(x, r.normal, y, s.normal) {
+                hits += 1;
+            }
+        }
+        hits as f64 / self.rays.max(1) as f64
+    }
+}
+
 /// Finds the element of one surface containing a point: a uniform grid over the surface's
 /// plane, each cell listing the elements whose bounds overlap it.
 struct ElementLocator {
@@ -393,9 +446,9 @@ impl<'a> MonteCarlo<'a> {
     }
 }
 
-impl FormFactors for MonteCarlo<'_> {
-    fn name(&self) -> &'static str {
-        "monte-carlo"
+impl Engine for MonteCarlo<'_> {
+    fn method(&self) -> FormFactorMethod {
+        FormFactorMethod::MonteCarlo
     }
 
     fn pair(&self, element: usize, patch: usize) -> f64 {
@@ -407,18 +460,12 @@ impl FormFactors for MonteCarlo<'_> {
     }
 
     /// The share of the element's rays that landed on `source` first.
-    fn element_pair(&self, element: usize, source: usize) -> Option<f64> {
+    fn element_pair(&self, element: usize, source: usize) -> f64 {
         let row = self.row_of(element);
-        Some(
-            match row.binary_search_by_key(&(source as u32), |(h, _)| *h) {
-                Ok(i) => self.fraction(row[i].1),
-                Err(_) => 0.0,
-            },
-        )
-    }
-
-    fn resolves_elements(&self) -> bool {
-        true
+        match row.binary_search_by_key(&(source as u32), |(h, _)| *h) {
+            Ok(i) => self.fraction(row[i].1),
+            Err(_) => 0.0,
+        }
     }
 
     fn row(&self, element: usize, out: &mut [f32]) {

@@ -18,8 +18,7 @@
 //! defined for a differential `from`.
 
 use super::{
-    analytic, hemicube, monte_carlo, point_sampled, raycast, FormFactorMethod, FormFactors,
-    Visibility,
+    analytic, hemicube, monte_carlo, point_sampled, raycast, Engine, FormFactorMethod, Visibility,
 };
 use crate::geometry::{split_into_convex, GeometryError, Polygon, COORDINATE_LIMIT};
 use crate::mesh::{Mesh, MeshOptions};
@@ -412,8 +411,8 @@ pub fn estimate(
     }
 }
 
-/// `raycast` on a pair problem: the mesh engine itself ([`raycast::Raycast`] with its default
-/// parameters), run on a mesh of the problem with one element and one patch per polygon
+/// `raycast` on a pair problem: the mesh engine itself (the [`raycast::RaycastKernel`] in a
+/// [`super::KernelEngine`]), run on a mesh of the problem with one element and one patch per polygon
 /// (the mesh turns a polygon of more than four vertices into a fan of triangles), so that
 /// the answer is the engine's own: F_{from→to} = Σ_{e∈from} (A_e / A_from) Σ_{p∈to} F_{e→p}.
 ///
@@ -441,8 +440,13 @@ pub fn raycast_pair(problem: &PairProblem) -> Estimate {
     let fraction = match problem.occluder_visibility() {
         None => 1.0,
         Some(vis) => {
-            let source = analytic::ProbedSource::new(&problem.to, params.probe, params.penumbra);
-            analytic::visible_fraction(&vis, &[(point, 1.0)], normal, &source, true)
+            let source = super::kernel::SourcePolygon::new(
+                &problem.to,
+                params.probe,
+                params.penumbra,
+                super::kernel::Division::SubAreas,
+            );
+            super::kernel::visible_fraction(&vis, &[(point, 1.0)], normal, &source, true)
         }
     };
     Estimate::exact(f * fraction)
@@ -490,7 +494,11 @@ fn raycast_polygon_pair(
     let is_from = |s: u32| scene_surface(s) == 0;
     let is_to = |s: u32| scene_surface(s) == 1;
     let visibility = Visibility::new(&mesh);
-    let engine = raycast::Raycast::with_params(&mesh, &visibility, params);
+    let engine = super::engine::KernelEngine::new(
+        &mesh,
+        &visibility,
+        Box::new(raycast::RaycastKernel { params }),
+    );
     let area: f64 = crate::geometry::newell(from).1;
     let patches: Vec<usize> = (0..mesh.patches.len())
         .filter(|&p| is_to(mesh.patches[p].surface))

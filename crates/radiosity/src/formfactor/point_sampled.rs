@@ -10,7 +10,7 @@
 //! with θ_x, θ_y the angles between the ray x→y and the normals (one-sided: back-facing
 //! terms are 0) and V(x, y) ∈ {0, 1} from one shadow ray through the shared BVH.
 //!
-//! - Mesh engine ([`PointSampled`]): x is the element's centre and the sum runs over about
+//! - Kernel ([`PointSampledKernel`]): x is the receiver's centre and the sum runs over about
 //!   `samples` sub-areas of the patch (or, for the solver's near field, of a single source
 //!   element).
 //! - Pair problems ([`point_sampled_pair`]): a polygon `from` is divided the same way and the
@@ -21,14 +21,13 @@
 //! sum converges only like O(h): adjacent polygons need many samples.
 
 use super::analytic::area_centroid;
+use super::kernel::{Division, Kernel, Receiver, SourcePolygon};
 use super::pair::{Estimate, PairProblem, Source};
-use super::{sub_areas, FormFactors, Visibility};
-use crate::geometry::newell;
-use crate::mesh::Mesh;
+use super::{FormFactorMethod, Visibility};
+use crate::geometry::{newell, sub_areas};
 use glam::DVec3;
 use rayon::prelude::*;
 use std::f64::consts::PI;
-use std::sync::OnceLock;
 
 /// Sub-areas per patch in the mesh engine (4 × 4 on a quad patch).
 pub const DEFAULT_SAMPLES: usize = 16;
@@ -68,92 +67,45 @@ fn kernel(x: DVec3, nx: DVec3, y: DVec3, ny: DVec3) -> f64 {
     cx * cy / (PI * r2 * r2)
 }
 
-/// The `point-sampled` mesh engine: element centre to the sub-areas of the patch.
-pub struct PointSampled<'a> {
-    mesh: &'a Mesh,
-    visibility: &'a Visibility,
-    samples: usize,
-    sources: Vec<(Vec<Sample>, DVec3)>,
-    /// Elements as sources for the near field, divided on first use.
-    element_sources: Vec<OnceLock<Vec<Sample>>>,
+/// The `point-sampled` kernel: the receiver's centre to about `samples` sub-areas of the
+/// source, one shadow ray each.
+#[derive(Debug, Clone, Copy)]
+pub struct PointSampledKernel {
+    /// Sub-areas per source (4 × 4 on a quad by default).
+    pub samples: usize,
 }
 
-impl<'a> PointSampled<'a> {
-    pub fn new(mesh: &'a Mesh, visibility: &'a Visibility) -> Self {
-        Self::with_samples(mesh, visibility, DEFAULT_SAMPLES)
-    }
-
-    /// With about `samples` sub-areas per patch.
-    pub fn with_samples(mesh: &'a Mesh, visibility: &'a Visibility, samples: usize) -> Self {
-        let sources = mesh
-            .patches
-            .iter()
-            .map(|p| {
-                (
-                    samples_of(p.polygon.vertices(), samples),
-                    p.polygon.normal(),
-                )
-            })
-            .collect();
+impl Default for PointSampledKernel {
+    fn default() -> Self {
         Self {
-            mesh,
-            visibility,
-            samples,
-            sources,
-            element_sources: (0..mesh.elements.len()).map(|_| OnceLock::new()).collect(),
+            samples: DEFAULT_SAMPLES,
         }
     }
 }
 
-impl PointSampled<'_> {
-    fn receive(&self, element: usize, samples: &[Sample], ny: DVec3) -> f64 {
-        let e = &self.mesh.elements[element];
-        samples
+impl Kernel for PointSampledKernel {
+    fn method(&self) -> FormFactorMethod {
+        FormFactorMethod::PointSampled
+    }
+
+    fn source(&self, vertices: &[DVec3]) -> SourcePolygon {
+        let k = ((self.samples.max(1) as f64).sqrt().round() as usize).max(1);
+        SourcePolygon::new(vertices, 1, k, Division::SubAreas)
+    }
+
+    fn form_factor(&self, r: &Receiver, s: &SourcePolygon, visibility: &Visibility) -> f64 {
+        s.sub_points
             .iter()
-            .map(|s| {
-                let k = kernel(e.centre, e.normal, s.point, ny);
-                if k > 0.0 && self.visibility.visible(e.centre, e.normal, s.point, ny) {
-                    k * s.area
+            .zip(&s.sub_area_sizes)
+            .map(|(&y, &area)| {
+                let k = kernel(r.centre, r.normal, y, s.normal);
+                if k > 0.0 && visibility.visible(r.centre, r.normal, y, s.normal) {
+                    k * area
                 } else {
                     0.0
                 }
             })
             .sum()
-    }
-}
-
-impl FormFactors for PointSampled<'_> {
-    fn name(&self) -> &'static str {
-        "point-sampled"
-    }
-
-    fn pair(&self, element: usize, patch: usize) -> f64 {
-        if self.mesh.elements[element].surface == self.mesh.patches[patch].surface {
-            return 0.0;
-        }
-        let (samples, ny) = &self.sources[patch];
-        self.receive(element, samples, *ny)
-    }
-
-    /// The same sum over about as many sub-areas of the single source element.
-    fn element_pair(&self, element: usize, source: usize) -> Option<f64> {
-        let (e, s) = (&self.mesh.elements[element], &self.mesh.elements[source]);
-        if e.surface == s.surface {
-            return Some(0.0);
-        }
-        let samples = self.element_sources[source].get_or_init(|| {
-            let corners: Vec<DVec3> = s
-                .corners
-                .iter()
-                .map(|&c| self.mesh.vertices[c as usize])
-                .collect();
-            samples_of(&corners, self.samples)
-        });
-        Some(self.receive(element, samples, s.normal))
-    }
-
-    fn resolves_elements(&self) -> bool {
-        true
     }
 }
 

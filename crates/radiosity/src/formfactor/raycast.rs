@@ -9,10 +9,10 @@
 //!   F_{dx→p} ≈ Σ_k V(x, y_k) F_{dx→ΔA_k}.
 //!
 //! Refinements that keep it fast, accurate and conservative:
-//! - the receiving element is integrated with an n×n Gauss rule (area average over e, not
-//!   just its centre value). The order n is chosen per *element*, from its distance to the
-//!   nearest other surface relative to its size, and the same points serve every source
-//!   patch: at every point the exact form factors to the surrounding polygons sum to the
+//! - the receiver is integrated with an n×n Gauss rule (area average over it, not just its
+//!   centre value). The order n is chosen per *receiver*, from its distance to the nearest
+//!   other surface relative to its size ([`Kernel::receiver_order`]), and the same points
+//!   serve every source: at every point the exact form factors to the surrounding polygons sum to the
 //!   solid-angle fraction they cover, so closure Σ_p F_{e→p} = 1 holds exactly (to
 //!   rounding) in an unoccluded enclosure;
 //! - visibility is probed with one ray per probe point (from up to 4 receiver points to the
@@ -20,11 +20,9 @@
 //!   the unoccluded value is used, otherwise (a penumbra) the visible fraction is weighted by
 //!   the exact form factors of `penumbra²` source sub-areas, as Wallace et al. do.
 
-use super::analytic::{visible_fraction, ProbedSource};
 use super::analytic_point::point_to_polygon;
-use super::quadrature::element_points;
-use super::{subdivide, FormFactors, Visibility};
-use crate::mesh::Mesh;
+use super::kernel::{visible_fraction, Division, Kernel, Receiver, SourcePolygon};
+use super::{FormFactorMethod, Visibility};
 use glam::DVec3;
 
 /// Parameters of the raycast method.
@@ -37,6 +35,7 @@ pub struct RaycastParams {
     /// Receiver quadrature order n = ceil(quality × size / distance to the nearest other
     /// surface), clamped to 1..=`max_order` (used as is for elements touching another surface).
     pub quality: f64,
+    /// Largest receiver quadrature order.
     pub max_order: usize,
 }
 
@@ -51,207 +50,62 @@ impl Default for RaycastParams {
     }
 }
 
-/// Precomputed per-patch data for the raycast method.
-struct SourcePatch {
-    probed: ProbedSource,
-    centre: DVec3,
-    radius: f64,
+/// The raycast kernel.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct RaycastKernel {
+    /// Its parameters.
+    pub params: RaycastParams,
 }
 
-impl SourcePatch {
-    fn new(vertices: Vec<DVec3>, normal: DVec3, centre: DVec3, params: &RaycastParams) -> Self {
-        let centroid = |v: &[DVec3]| v.iter().copied().sum::<DVec3>() / v.len() as f64;
-        let radius = vertices
-            .iter()
-            .map(|v| v.distance(centre))
-            .fold(0.0, f64::max);
-        let probes = subdivide(&vertices, params.probe.max(1))
-            .iter()
-            .map(|s| centroid(s))
-            .collect();
-        let sub_areas = subdivide(&vertices, params.penumbra.max(1));
-        Self {
-            probed: ProbedSource::from_parts(vertices, normal, probes, sub_areas),
-            centre,
-            radius,
+impl Kernel for RaycastKernel {
+    fn method(&self) -> FormFactorMethod {
+        FormFactorMethod::Raycast
+    }
+
+    fn source(&self, vertices: &[DVec3]) -> SourcePolygon {
+        SourcePolygon::new(
+            vertices,
+            self.params.probe.max(1),
+            self.params.penumbra.max(1),
+            Division::Lattice,
+        )
+    }
+
+    fn receiver_order(&self, size: f64, clearance: &dyn Fn() -> f64) -> usize {
+        let distance = clearance();
+        if distance <= 1e-9 * size {
+            self.params.max_order
+        } else {
+            ((self.params.quality * size / distance).ceil() as usize)
+                .clamp(1, self.params.max_order.max(1))
         }
     }
-}
 
-/// The raycast form-factor engine over one mesh.
-pub struct Raycast<'a> {
-    mesh: &'a Mesh,
-    visibility: &'a Visibility,
-    sources: Vec<SourcePatch>,
-    /// Receiver quadrature and visibility points of every element.
-    receivers: Vec<ReceiverPoints>,
-    /// Every element as a source (for near-field element-to-element pairs).
-    element_sources: Vec<SourcePatch>,
-}
-
-/// An element's quadrature points (weights summing to 1) and the points it casts
-/// visibility rays from (the quadrature points up to order 2, else a 2×2 Gauss subset).
-struct ReceiverPoints {
-    points: Vec<(DVec3, f64)>,
-    visibility: Vec<(DVec3, f64)>,
-}
-
-impl<'a> Raycast<'a> {
-    pub fn new(mesh: &'a Mesh, visibility: &'a Visibility) -> Self {
-        Self::with_params(mesh, visibility, RaycastParams::default())
-    }
-
-    pub fn with_params(mesh: &'a Mesh, visibility: &'a Visibility, params: RaycastParams) -> Self {
-        let sources = mesh
-            .patches
-            .iter()
-            .map(|p| {
-                SourcePatch::new(
-                    p.polygon.vertices().to_vec(),
-                    p.polygon.normal(),
-                    p.polygon.centroid(),
-                    &params,
-                )
-            })
-            .collect();
-        let element_orders: Vec<usize> = mesh
-            .elements
-            .iter()
-            .map(|e| {
-                let c = &e.corners;
-                let mut size: f64 = 0.0;
-                for i in 0..c.len() {
-                    for j in i + 1..c.len() {
-                        size = size.max(
-                            mesh.vertices[c[i] as usize].distance(mesh.vertices[c[j] as usize]),
-                        );
-                    }
-                }
-                // Nearest other surface that can exchange light with this element.
-                let distance = mesh
-                    .surface_polygons
-                    .iter()
-                    .enumerate()
-                    .filter(|(s, poly)| {
-                        *s != e.surface as usize
-                            && poly
-                                .vertices()
-                                .iter()
-                                .any(|v| (*v - e.centre).dot(e.normal) > 0.0)
-                            && c.iter()
-                                .any(|&k| poly.plane_distance(mesh.vertices[k as usize]) > 0.0)
-                    })
-                    .map(|(_, poly)| poly.distance_to(e.centre))
-                    .fold(f64::INFINITY, f64::min);
-                if distance <= 1e-9 * size {
-                    params.max_order
-                } else {
-                    ((params.quality * size / distance).ceil() as usize)
-                        .clamp(1, params.max_order.max(1))
-                }
-            })
-            .collect();
-        let receivers = mesh
-            .elements
-            .iter()
-            .zip(&element_orders)
-            .map(|(e, &order)| {
-                let verts: Vec<DVec3> = e
-                    .corners
-                    .iter()
-                    .map(|&c| mesh.vertices[c as usize])
-                    .collect();
-                let mut points = Vec::with_capacity(order * order);
-                element_points(&verts, e.centre, order, &mut points);
-                let visibility = if order <= 2 {
-                    points.clone()
-                } else {
-                    let mut vis = Vec::with_capacity(4);
-                    element_points(&verts, e.centre, 2, &mut vis);
-                    vis
-                };
-                ReceiverPoints { points, visibility }
-            })
-            .collect();
-        let element_sources = mesh
-            .elements
-            .iter()
-            .map(|e| {
-                let vertices = e
-                    .corners
-                    .iter()
-                    .map(|&c| mesh.vertices[c as usize])
-                    .collect();
-                SourcePatch::new(vertices, e.normal, e.centre, &params)
-            })
-            .collect();
-        Self {
-            mesh,
-            visibility,
-            sources,
-            receivers,
-            element_sources,
-        }
-    }
-}
-
-impl FormFactors for Raycast<'_> {
-    fn name(&self) -> &'static str {
-        "raycast"
-    }
-
-    fn pair(&self, element: usize, patch: usize) -> f64 {
-        let p = &self.mesh.patches[patch];
-        if self.mesh.elements[element].surface == p.surface {
-            return 0.0;
-        }
-        self.receive(element, &self.sources[patch])
-    }
-
-    fn element_pair(&self, element: usize, source: usize) -> Option<f64> {
-        let (e, s) = (&self.mesh.elements[element], &self.mesh.elements[source]);
-        if e.surface == s.surface {
-            return Some(0.0);
-        }
-        Some(self.receive(element, &self.element_sources[source]))
-    }
-
-    fn resolves_elements(&self) -> bool {
-        true
-    }
-}
-
-impl Raycast<'_> {
-    /// F from element `element` to the source `s`, with visibility.
-    fn receive(&self, element: usize, s: &SourcePatch) -> f64 {
-        let e = &self.mesh.elements[element];
-        // Whole-element culls: the source entirely behind the element's plane, or the
-        // element entirely behind the source's plane.
-        let corners = || e.corners.iter().map(|&c| self.mesh.vertices[c as usize]);
-        if s.probed
-            .vertices
-            .iter()
-            .all(|v| (*v - e.centre).dot(e.normal) <= 1e-12 * s.radius)
-            || corners().all(|c| (c - s.centre).dot(s.probed.normal) <= 1e-12 * s.radius)
+    fn form_factor(&self, r: &Receiver, s: &SourcePolygon, visibility: &Visibility) -> f64 {
+        // Whole-receiver culls: the source entirely behind the receiver's plane, or the
+        // receiver entirely behind the source's plane.
+        let behind_source = if r.is_point() {
+            (r.centre - s.centre).dot(s.normal) <= 1e-12 * s.radius
+        } else {
+            r.vertices
+                .iter()
+                .all(|c| (*c - s.centre).dot(s.normal) <= 1e-12 * s.radius)
+        };
+        if behind_source
+            || s.vertices
+                .iter()
+                .all(|v| (*v - r.centre).dot(r.normal) <= 1e-12 * s.radius)
         {
             return 0.0;
         }
-        let points = &self.receivers[element];
-        let unoccluded: f64 = points
+        let unoccluded: f64 = r
             .points
             .iter()
-            .map(|&(x, w)| w * point_to_polygon(x, e.normal, &s.probed.vertices, s.probed.normal))
+            .map(|&(x, w)| w * point_to_polygon(x, r.normal, &s.vertices, s.normal))
             .sum();
         if unoccluded <= 0.0 {
             return 0.0;
         }
-        let fraction = visible_fraction(
-            self.visibility,
-            &points.visibility,
-            e.normal,
-            &s.probed,
-            false,
-        );
-        unoccluded * fraction
+        unoccluded * visible_fraction(visibility, &r.visibility_points, r.normal, s, false)
     }
 }

@@ -52,6 +52,33 @@ pub fn write_atomically(
     Ok(())
 }
 
+/// Checks, before any long work, that [`write_atomically`] could write `path`: it names a
+/// file (not a directory) in an existing directory where a file can be created. Nothing is
+/// left behind.
+pub fn check_writable(path: &Path) -> io::Result<()> {
+    if path.file_name().is_none() || path.is_dir() {
+        return Err(io::Error::new(
+            io::ErrorKind::InvalidInput,
+            "does not name a file",
+        ));
+    }
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    if !dir.is_dir() {
+        return Err(io::Error::new(
+            io::ErrorKind::NotFound,
+            format!("directory {} does not exist", dir.display()),
+        ));
+    }
+    let probe = tempfile::Builder::new()
+        .prefix(".radiosity-write-test-")
+        .tempfile_in(dir)?;
+    drop(probe);
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -51,7 +51,6 @@ use glam::DVec3;
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 use std::collections::HashMap;
-use std::io::Write;
 use std::path::Path;
 
 /// Defaults for the later pipeline stages, stored with the scene. Every field is optional;
@@ -94,30 +93,6 @@ pub struct SceneSettings {
     /// Image height in pixels, ≥ 1.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub height: Option<u32>,
-}
-
-impl SceneSettings {
-    /// What is wrong with the values, if anything (the ones whose range is obvious).
-    fn problem(&self) -> Option<String> {
-        let positive = [
-            ("max_element_size", self.max_element_size),
-            ("tolerance", self.tolerance),
-        ];
-        for (key, value) in positive {
-            if let Some(v) = value.filter(|v| !(v.is_finite() && *v > 0.0)) {
-                return Some(format!("settings: {key} {v} must be > 0"));
-            }
-        }
-        if let Some(v) = self.exposure.filter(|v| !v.is_finite()) {
-            return Some(format!("settings: exposure {v} must be finite"));
-        }
-        for (key, value) in [("width", self.width), ("height", self.height)] {
-            if value == Some(0) {
-                return Some(format!("settings: {key} must be ≥ 1"));
-            }
-        }
-        None
-    }
 }
 
 /// A scene together with the settings stored in its file.
@@ -314,9 +289,6 @@ pub fn parse_scene_file(json: &str, path: &Path) -> Result<LoadedScene, SceneErr
         }
         scene.camera = Some(camera);
     }
-    if let Some(problem) = parsed.settings.problem() {
-        return Err(invalid(problem));
-    }
     if scene.surfaces.is_empty() {
         return Err(SceneError::Empty { file });
     }
@@ -398,15 +370,7 @@ pub fn save_scene_file(
         source,
     };
     let text = to_pretty_json(&scene_to_json(scene, settings));
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    let mut temp = tempfile::NamedTempFile::new_in(dir).map_err(write_error)?;
-    temp.write_all(text.as_bytes()).map_err(write_error)?;
-    temp.as_file().sync_all().map_err(write_error)?;
-    temp.persist(path).map_err(|e| write_error(e.error))?;
-    Ok(())
+    crate::io::atomic::write_atomically(path, |w| w.write_all(text.as_bytes())).map_err(write_error)
 }
 
 /// Loads a scene by extension: `.obj` with [`load_obj`] (default settings), `.json` with
@@ -637,10 +601,14 @@ mod tests {
     fn semantic_errors() {
         let bad_settings =
             SQUARE.replace("\"surfaces\"", "\"settings\": {\"width\": 0}, \"surfaces\"");
-        assert!(matches!(
-            parse(&bad_settings),
-            Err(SceneError::Invalid { .. })
-        ));
+        // Settings are validated where they are resolved, naming the file and the key.
+        let loaded = parse(&bad_settings).unwrap();
+        let e = crate::settings::resolve(
+            Some((&loaded.settings, "t.json")),
+            &crate::settings::Overrides::default(),
+        )
+        .unwrap_err();
+        assert!(e.to_string().starts_with("t.json: settings.width"), "{e}");
         let dup = SQUARE.replace(
             "}],\n        \"surfaces\"",
             "}, {\"name\": \"white\", \"reflectance\": [0.5, 0.5, 0.5]}],\n        \"surfaces\"",

@@ -66,6 +66,17 @@ impl Format {
     }
 }
 
+/// Checks before rendering that `path` has a supported extension and can be written.
+pub fn check_output(path: &Path) -> Result<(), ImageError> {
+    Format::of(path).ok_or_else(|| ImageError::UnsupportedExtension {
+        path: path.to_owned(),
+    })?;
+    crate::io::atomic::check_writable(path).map_err(|source| ImageError::Io {
+        path: path.to_owned(),
+        source,
+    })
+}
+
 impl Image {
     /// A black `width` × `height` image.
     pub fn new(width: u32, height: u32) -> Self {

@@ -13,7 +13,7 @@
 mod image;
 mod raster;
 
-pub use image::{srgb_byte, Image, ImageError};
+pub use image::{check_output, srgb_byte, Image, ImageError};
 
 use crate::scene::Camera;
 use glam::DVec3;

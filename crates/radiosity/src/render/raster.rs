@@ -140,56 +140,13 @@ struct ClipVertex {
 }
 
 /// A convex polygon of at most 3 + 5 vertices (each clip plane adds at most one).
-#[derive(Debug, Clone, Copy)]
-struct ClipPolygon {
-    v: [ClipVertex; 8],
-    n: usize,
-}
+type ClipPolygon = crate::geometry::FixedPolygon<ClipVertex, 8>;
 
-impl ClipPolygon {
-    fn clip(&self, (normal, w): (DVec3, f64)) -> ClipPolygon {
-        let mut out = ClipPolygon {
-            v: [ClipVertex::default(); 8],
-            n: 0,
-        };
-        if self.n == 0 {
-            return out;
-        }
-        let dist = |v: &ClipVertex| normal.dot(v.p) + w;
-        let mut prev = self.v[self.n - 1];
-        let mut d_prev = dist(&prev);
-        for &cur in &self.v[..self.n] {
-            let d_cur = dist(&cur);
-            let (prev_in, cur_in) = (d_prev >= 0.0, d_cur >= 0.0);
-            if prev_in != cur_in {
-                // Always interpolate from the inside endpoint so that both triangles sharing
-                // this edge compute a bit-identical vertex.
-                let (a, da, b, db) = if prev_in {
-                    (prev, d_prev, cur, d_cur)
-                } else {
-                    (cur, d_cur, prev, d_prev)
-                };
-                let t = da / (da - db);
-                out.push(ClipVertex {
-                    p: a.p + (b.p - a.p) * t,
-                    l: a.l + (b.l - a.l) * t,
-                });
-            }
-            if cur_in {
-                out.push(cur);
-            }
-            prev = cur;
-            d_prev = d_cur;
-        }
-        out
-    }
-
-    fn push(&mut self, v: ClipVertex) {
-        // At most one vertex is added per plane, so this cannot overflow for a triangle.
-        debug_assert!(self.n < self.v.len());
-        if self.n < self.v.len() {
-            self.v[self.n] = v;
-            self.n += 1;
+impl crate::geometry::ClipVertex for ClipVertex {
+    fn lerp_to(self, other: Self, t: f64) -> Self {
+        ClipVertex {
+            p: self.p + (other.p - self.p) * t,
+            l: self.l + (other.l - self.l) * t,
         }
     }
 }
@@ -277,39 +234,40 @@ pub(crate) fn setup_triangle(
     out: &mut Vec<RasterTriangle>,
 ) {
     let mut poly = ClipPolygon {
-        v: [ClipVertex::default(); 8],
-        n: 3,
+        vertices: [ClipVertex::default(); 8],
+        len: 3,
     };
     for i in 0..3 {
-        poly.v[i] = ClipVertex {
+        poly.vertices[i] = ClipVertex {
             p: proj.view_of(tri.positions[i]),
             l: DVec3::from(tri.radiance[i].map(f64::from)),
         };
     }
     for plane in proj.clip_planes(near) {
         let d = |v: &ClipVertex| plane.0.dot(v.p) + plane.1;
-        if poly.v[..poly.n].iter().any(|v| d(v) < 0.0) {
-            poly = poly.clip(plane);
+        if poly.as_slice().iter().any(|v| d(v) < 0.0) {
+            let input = poly;
+            crate::geometry::clip_convex(input.as_slice(), d, &mut poly);
         }
     }
-    if poly.n < 3 {
+    if poly.len < 3 {
         return;
     }
     // Project and snap once per polygon vertex, then fan-triangulate: the fan's internal
     // edges are shared exactly, like any other shared edge.
     let mut screen = [DVec2::ZERO; 8];
     let mut fixed = [(0i64, 0i64); 8];
-    for i in 0..poly.n {
-        screen[i] = proj.screen_of(poly.v[i].p);
+    for i in 0..poly.len {
+        screen[i] = proj.screen_of(poly.vertices[i].p);
         let f = screen[i] * SUBPIXEL as f64;
         fixed[i] = (f.x.round() as i64, f.y.round() as i64);
     }
-    for k in 1..poly.n - 1 {
+    for k in 1..poly.len - 1 {
         let idx = [0, k, k + 1];
         if let Some(t) = raster_triangle(
             idx.map(|i| fixed[i]),
             idx.map(|i| screen[i]),
-            idx.map(|i| poly.v[i]),
+            idx.map(|i| poly.vertices[i]),
             proj.width,
             proj.height,
         ) {
@@ -734,12 +692,13 @@ mod tests {
         let d = vertex(-0.8, 0.4, -0.2, 0.7);
         let clip = |v: [ClipVertex; 3]| {
             let mut p = ClipPolygon {
-                v: [ClipVertex::default(); 8],
-                n: 3,
+                vertices: [ClipVertex::default(); 8],
+                len: 3,
             };
-            p.v[..3].copy_from_slice(&v);
-            let p = p.clip((DVec3::Z, -1e-3));
-            p.v[..p.n]
+            p.vertices[..3].copy_from_slice(&v);
+            let input = p;
+            crate::geometry::clip_convex(input.as_slice(), |q| q.p.z - 1e-3, &mut p);
+            p.as_slice()
                 .iter()
                 .filter(|q| ![a, b, c, d].iter().any(|o| o.p == q.p))
                 .map(|q| (q.p, q.l))

@@ -2,19 +2,33 @@
 //! (faer) of the patch-level system (I − M) per channel, with near-field links summed back
 //! to their patches. The element-level remainder (near links resolving a patch's elements)
 //! is removed by iterative refinement with the same factors (Wilkinson's defect
-//! correction): r = E + ρT(B) − B, solve the patch-level system for the correction's patch
+//! correction): r = E + ρK(B) − B, solve the patch-level system for the correction's patch
 //! means, spread it to the elements, repeat until the residual stops falling (machine
 //! precision, typically a handful of steps). With no near field the first step is exact.
 
-use super::{SolveOptions, Transport};
+use super::observer::SolverClock;
+use super::{
+    reflect, relative_difference, solution_from, Observer, Solution, SolveError, SolveOptions,
+    SolveStats, SolverKind, Step, StepKind,
+};
+use crate::coupling::Coupling;
 use faer::linalg::solvers::Solve;
 use faer::Mat;
 
-/// Returns (B per element, LU solves, relative residual).
-pub fn solve(t: &Transport, _options: &SolveOptions) -> (Vec<[f64; 3]>, usize, f64) {
-    let mesh = t.mesh;
+/// LU of the patch-level system, then defect correction on the element system.
+pub fn solve(
+    coupling: &dyn Coupling,
+    _options: &SolveOptions,
+    observer: &mut dyn Observer,
+) -> Result<Solution, SolveError> {
+    let dense = coupling.as_dense().ok_or(SolveError::NeedsDense {
+        solver: SolverKind::Direct,
+        coupling: coupling.name(),
+    })?;
+    let mesh = coupling.mesh();
+    let mut clock = SolverClock::start();
     let m = mesh.patches.len();
-    let matrix = t.patch_matrix();
+    let matrix = dense.patch_matrix();
     let lus: Vec<_> = (0..3)
         .map(|c| {
             Mat::<f64>::from_fn(m, m, |i, j| (i == j) as u8 as f64 - matrix[c][i * m + j])
@@ -24,7 +38,7 @@ pub fn solve(t: &Transport, _options: &SolveOptions) -> (Vec<[f64; 3]>, usize, f
     // Spreads a patch-level solve of the element residual r into an element correction:
     // δ̄ = (I − M)⁻¹ r̄, δ_e = r_e + ρ_e Σ_q F_{e→q} δ̄_q (full rows, near summed back).
     let correct = |r: &[[f64; 3]]| -> Vec<[f64; 3]> {
-        let rp = t.patch_means(r);
+        let rp = dense.patch_means(r);
         let mut dp = vec![[0.0; 3]; m];
         for (c, lu) in lus.iter().enumerate() {
             let mut rhs = Mat::<f64>::from_fn(m, 1, |i, _| rp[i][c]);
@@ -33,15 +47,13 @@ pub fn solve(t: &Transport, _options: &SolveOptions) -> (Vec<[f64; 3]>, usize, f
                 d[c] = rhs[(i, 0)];
             }
         }
+        let spread = dense.gather_patch_values(&dp);
         mesh.elements
             .iter()
             .enumerate()
             .map(|(e, el)| {
-                let full = t.coupling.full_row(mesh, e);
                 let rho = mesh.reflectance(el);
-                std::array::from_fn(|c| {
-                    r[e][c] + rho[c] * full.iter().zip(&dp).map(|(f, d)| f * d[c]).sum::<f64>()
-                })
+                std::array::from_fn(|c| r[e][c] + rho[c] * spread[e][c])
             })
             .collect()
     };
@@ -50,7 +62,7 @@ pub fn solve(t: &Transport, _options: &SolveOptions) -> (Vec<[f64; 3]>, usize, f
     let mut residual = f64::INFINITY;
     let mut steps = 0;
     for _ in 0..50 {
-        let next = t.apply(&b);
+        let next = reflect(mesh, &coupling.gather(&b));
         let r: Vec<[f64; 3]> = next
             .iter()
             .zip(&b)
@@ -62,16 +74,39 @@ pub fn solve(t: &Transport, _options: &SolveOptions) -> (Vec<[f64; 3]>, usize, f
             .zip(&delta)
             .map(|(x, d)| std::array::from_fn(|c| x[c] + d[c]))
             .collect();
-        let res = t.residual(&candidate);
+        let after = reflect(mesh, &coupling.gather(&candidate));
+        let res = relative_difference(mesh, &candidate, &after);
         steps += 1;
         if res >= residual {
             break;
         }
         b = candidate;
         residual = res;
+        clock.report(observer, |elapsed| Step {
+            solver: SolverKind::Direct,
+            kind: StepKind::Iteration,
+            index: steps,
+            residual,
+            tolerance: 1e-13,
+            elapsed,
+            mesh,
+            radiosity: &b,
+            unshot: None,
+        });
         if residual < 1e-13 {
             break;
         }
     }
-    (b, steps, residual)
+    let seconds = clock.seconds();
+    Ok(solution_from(
+        coupling,
+        b,
+        SolveStats {
+            solver: SolverKind::Direct,
+            iterations: steps,
+            residual,
+            seconds,
+            form_factor_seconds: coupling.form_factor_seconds(),
+        },
+    ))
 }

@@ -1,47 +1,73 @@
 //! Gauss–Seidel iteration: each element is updated in place from the newest values,
-//! B_e ← E_e + ρ_e H_e(B), with the patch means it gathers from kept current as elements
-//! change. Typically needs about half as many sweeps as Jacobi; inherently sequential over
-//! elements.
+//! B_e ← E_e + ρ_e H_e(B) ([`Coupling::sweep`]). Typically needs about half as many sweeps
+//! as Jacobi; inherently sequential over elements.
+//!
+//! The converging quantity is the change of one sweep, ‖B⁽ᵏ⁺¹⁾ − B⁽ᵏ⁾‖/‖E‖ (area-weighted,
+//! relative to the emission), which costs nothing extra.
 
-use super::{SolveOptions, Transport};
-use crate::progress::Progress;
+use super::observer::SolverClock;
+use super::{
+    exitance, relative_difference, solution_from, Flow, Observer, Solution, SolveOptions,
+    SolveStats, SolverKind, Step, StepKind,
+};
+use crate::coupling::Coupling;
 
-/// Returns (B per element, iterations, relative residual).
+/// Sweeps to the tolerance or the iteration cap (or until the observer stops it).
 pub fn solve(
-    t: &Transport,
+    coupling: &dyn Coupling,
     options: &SolveOptions,
-    progress: &dyn Progress,
-) -> (Vec<[f64; 3]>, usize, f64) {
-    let mesh = t.mesh;
-    let mut b = t.exitance();
-    let mut bp = t.patch_means(&b);
-    let patch_area: Vec<f64> = mesh.patches.iter().map(|p| mesh.patch_area(p)).collect();
-    let mut residual = t.residual(&b);
+    observer: &mut dyn Observer,
+) -> Solution {
+    let mesh = coupling.mesh();
+    let mut clock = SolverClock::start();
+    let mut b = exitance(mesh);
+    let mut residual = f64::INFINITY;
     let mut iterations = 0;
-    progress.start("gauss-seidel", options.max_iterations as u64);
-    while residual > options.tolerance && iterations < options.max_iterations {
-        sweep(t, &mut b, &mut bp, &patch_area);
+    let mut flow = clock.report(observer, |elapsed| Step {
+        solver: SolverKind::GaussSeidel,
+        kind: StepKind::Start,
+        index: 0,
+        residual,
+        tolerance: options.tolerance,
+        elapsed,
+        mesh,
+        radiosity: &b,
+        unshot: None,
+    });
+    while flow == Flow::Continue
+        && residual > options.tolerance
+        && iterations < options.max_iterations
+    {
+        let before = b.clone();
+        coupling.sweep(&mut b, &mut |e, h| {
+            let el = &mesh.elements[e];
+            let (rho, ex) = (mesh.reflectance(el), mesh.exitance(el));
+            std::array::from_fn(|c| ex[c] + rho[c] * h[c])
+        });
         iterations += 1;
-        residual = t.residual(&b);
-        progress.inc(1);
-        progress.message(&format!("residual {residual:.2e}"));
+        residual = relative_difference(mesh, &before, &b);
+        flow = clock.report(observer, |elapsed| Step {
+            solver: SolverKind::GaussSeidel,
+            kind: StepKind::Iteration,
+            index: iterations,
+            residual,
+            tolerance: options.tolerance,
+            elapsed,
+            mesh,
+            radiosity: &b,
+            unshot: None,
+        });
     }
-    progress.finish();
-    (b, iterations, residual)
-}
-
-/// One in-place Gauss–Seidel sweep over all elements; `bp` (patch means of `b`) and
-/// `patch_area` are kept consistent as elements change.
-pub fn sweep(t: &Transport, b: &mut [[f64; 3]], bp: &mut [[f64; 3]], patch_area: &[f64]) {
-    let mesh = t.mesh;
-    for (e, el) in mesh.elements.iter().enumerate() {
-        let h = t.irradiance_at(e, bp, b);
-        let (rho, ex) = (mesh.reflectance(el), mesh.exitance(el));
-        let q = el.patch.0 as usize;
-        for c in 0..3 {
-            let new = ex[c] + rho[c] * h[c];
-            bp[q][c] += (new - b[e][c]) * el.area / patch_area[q];
-            b[e][c] = new;
-        }
-    }
+    let seconds = clock.seconds();
+    solution_from(
+        coupling,
+        b,
+        SolveStats {
+            solver: SolverKind::GaussSeidel,
+            iterations,
+            residual,
+            seconds,
+            form_factor_seconds: coupling.form_factor_seconds(),
+        },
+    )
 }

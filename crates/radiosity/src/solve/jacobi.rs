@@ -1,31 +1,69 @@
-//! Jacobi iteration: B⁽ᵏ⁺¹⁾ = E + ρ T(B⁽ᵏ⁾), starting from B⁽⁰⁾ = E. Converges because
+//! Jacobi iteration: B⁽ᵏ⁺¹⁾ = E + ρ K(B⁽ᵏ⁾), starting from B⁽⁰⁾ = E. Converges because
 //! ρ < 1 and the form factors of each element sum to at most 1.
+//!
+//! The residual of B⁽ᵏ⁾, ‖E + ρK(B⁽ᵏ⁾) − B⁽ᵏ⁾‖/‖E‖, is exactly the change ‖B⁽ᵏ⁺¹⁾ − B⁽ᵏ⁾‖/‖E‖,
+//! so it costs nothing extra; the iteration stops when it falls to the tolerance and returns
+//! the newer iterate B⁽ᵏ⁺¹⁾.
 
-use super::{SolveOptions, Transport};
-use crate::progress::Progress;
+use super::observer::SolverClock;
+use super::{
+    exitance, reflect, relative_difference, solution_from, Flow, Observer, Solution, SolveOptions,
+    SolveStats, SolverKind, Step, StepKind,
+};
+use crate::coupling::Coupling;
 
-/// Returns (B per element, iterations, relative residual).
+/// Iterates to the tolerance or the iteration cap (or until the observer stops it).
 pub fn solve(
-    t: &Transport,
+    coupling: &dyn Coupling,
     options: &SolveOptions,
-    progress: &dyn Progress,
-) -> (Vec<[f64; 3]>, usize, f64) {
-    let mut b = t.exitance();
-    let mut residual = t.residual(&b);
+    observer: &mut dyn Observer,
+) -> Solution {
+    let mesh = coupling.mesh();
+    let mut clock = SolverClock::start();
+    let mut b = exitance(mesh);
+    let mut residual = f64::INFINITY;
     let mut iterations = 0;
-    progress.start("jacobi", options.max_iterations as u64);
-    while residual > options.tolerance && iterations < options.max_iterations {
-        b = step(t, &b);
+    let mut flow = clock.report(observer, |elapsed| Step {
+        solver: SolverKind::Jacobi,
+        kind: StepKind::Start,
+        index: 0,
+        residual,
+        tolerance: options.tolerance,
+        elapsed,
+        mesh,
+        radiosity: &b,
+        unshot: None,
+    });
+    while flow == Flow::Continue
+        && residual > options.tolerance
+        && iterations < options.max_iterations
+    {
+        let next = reflect(mesh, &coupling.gather(&b));
+        residual = relative_difference(mesh, &b, &next);
+        b = next;
         iterations += 1;
-        residual = t.residual(&b);
-        progress.inc(1);
-        progress.message(&format!("residual {residual:.2e}"));
+        flow = clock.report(observer, |elapsed| Step {
+            solver: SolverKind::Jacobi,
+            kind: StepKind::Iteration,
+            index: iterations,
+            residual,
+            tolerance: options.tolerance,
+            elapsed,
+            mesh,
+            radiosity: &b,
+            unshot: None,
+        });
     }
-    progress.finish();
-    (b, iterations, residual)
-}
-
-/// One Jacobi step: E + ρ T(B).
-pub fn step(t: &Transport, b: &[[f64; 3]]) -> Vec<[f64; 3]> {
-    t.apply(b)
+    let seconds = clock.seconds();
+    solution_from(
+        coupling,
+        b,
+        SolveStats {
+            solver: SolverKind::Jacobi,
+            iterations,
+            residual,
+            seconds,
+            form_factor_seconds: coupling.form_factor_seconds(),
+        },
+    )
 }

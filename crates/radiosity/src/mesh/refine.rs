@@ -111,8 +111,8 @@ pub fn mark(mesh: &Mesh, radiosity: &[[f64; 3]], options: &RefineOptions) -> Vec
     marked
 }
 
-/// Splits the marked elements into four (quads at edge midpoints and centre, triangles at
-/// edge midpoints). Patches are unchanged; each child records its parent's index in `mesh`.
+/// Splits the marked elements into four ([`crate::geometry::subdivide`] of order 2: quads at
+/// edge midpoints and centre, triangles at edge midpoints). Patches are unchanged; each child records its parent's index in `mesh`.
 /// Midpoints are shared with neighbours split in the same or an earlier pass.
 pub fn refine(mesh: &Mesh, marked: &[bool]) -> Mesh {
     let mut vertices = mesh.vertices.clone();
@@ -145,30 +145,9 @@ pub fn refine(mesh: &Mesh, marked: &[bool]) -> Mesh {
                 continue;
             }
             let p: Vec<DVec3> = e.corners.iter().map(|&c| vertices[c as usize]).collect();
-            let mid = |a: DVec3, b: DVec3| (a + b) * 0.5;
-            let children: Vec<Vec<DVec3>> = if p.len() == 4 {
-                let (ab, bc, cd, da) = (
-                    mid(p[0], p[1]),
-                    mid(p[1], p[2]),
-                    mid(p[2], p[3]),
-                    mid(p[3], p[0]),
-                );
-                let centre = (p[0] + p[1] + p[2] + p[3]) * 0.25;
-                vec![
-                    vec![p[0], ab, centre, da],
-                    vec![ab, p[1], bc, centre],
-                    vec![centre, bc, p[2], cd],
-                    vec![da, centre, cd, p[3]],
-                ]
-            } else {
-                let (ab, bc, ca) = (mid(p[0], p[1]), mid(p[1], p[2]), mid(p[2], p[0]));
-                vec![
-                    vec![p[0], ab, ca],
-                    vec![ab, p[1], bc],
-                    vec![ca, bc, p[2]],
-                    vec![ab, bc, ca],
-                ]
-            };
+            // Quads at edge midpoints and centre, triangles at edge midpoints: the lattice
+            // of order 2, whose edge points are exact midpoints shared with neighbours.
+            let children = crate::geometry::subdivide(&p, 2);
             for child in children {
                 let polygon = crate::geometry::Polygon::new_unchecked(child.clone());
                 let corners = child

@@ -2,11 +2,10 @@
 //! iterations (or shots), as a plot (`convergence.svg`, `convergence.png`) and a table
 //! (`table.md`).
 //!
-//! The form-factor coupling (element × patch matrix plus near-field links,
-//! [`CouplingMatrix`]) is computed once and shared: Jacobi, Gauss–Seidel and the direct
-//! solve work on the transport operator built on it ([`Transport`]), and progressive
-//! refinement takes its columns from it ([`MatrixFormFactors`]), so the comparison measures
-//! the solvers and not the form factors.
+//! The dense coupling (element × patch matrix plus near-field links,
+//! [`radiosity::coupling::Dense`]) is computed once and shared: every solver — the library's
+//! own, watched through its observer — gathers from it or shoots its columns, so the
+//! comparison measures the solvers and not the form factors.
 //!
 //! Error measure: the relative area-weighted L1 error of the element radiosity's reflected
 //! part,
@@ -25,39 +24,24 @@
 //! shots so far (column look-ups included), or the whole direct solve (patch matrix, LU and
 //! refinement). Evaluating the error is not timed.
 //!
-//! See also: `radiosity compare`, [`crate::solve`].
+//! See also: `radiosity compare`, [`radiosity::solve`].
 
-use crate::formfactor::{CouplingMatrix, FormFactors};
-use crate::mesh::Mesh;
-use crate::progress::Progress;
-use crate::solve::progressive::Progressive;
-use crate::solve::{direct, gauss_seidel, jacobi, SolveOptions, Transport};
-use rayon::prelude::*;
+use crate::font::register_font;
+use radiosity::accel::Visibility;
+use radiosity::coupling::{Coupling, Dense, NearField};
+use radiosity::formfactor::{engine, FormFactorMethod};
+use radiosity::mesh::Mesh;
+use radiosity::pipeline::solver_memory;
+use radiosity::progress::Progress;
+use radiosity::solve::progressive::Progressive;
+use radiosity::solve::{
+    display_radiosity, solve, Flow, NoObserver, SolveOptions, SolverKind, Step,
+};
 use std::fmt::Write as _;
 use std::path::Path;
-use std::sync::OnceLock;
-use std::time::Instant;
 
 /// The error levels the table reports the time to reach.
 pub const THRESHOLDS: [f64; 3] = [1e-2, 1e-3, 1e-4];
-
-/// The bundled font for plot text and sheet labels (DejaVu Sans; licence in
-/// `assets/DejaVuSans.LICENSE`).
-pub(crate) static FONT: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
-
-/// Registers the bundled font with plotters as "sans-serif" (once per process).
-pub(crate) fn register_font() -> Result<(), String> {
-    static REGISTERED: OnceLock<bool> = OnceLock::new();
-    let ok = *REGISTERED.get_or_init(|| {
-        plotters::style::register_font("sans-serif", plotters::style::FontStyle::Normal, FONT)
-            .is_ok()
-    });
-    if ok {
-        Ok(())
-    } else {
-        Err("the bundled font could not be loaded".into())
-    }
-}
 
 /// The solvers compared.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -219,97 +203,6 @@ pub enum CompareError {
     Write { path: String, message: String },
 }
 
-/// Form factors read from a precomputed coupling: progressive refinement's columns without
-/// recomputing them. Far pairs read the matrix; a near pair's patch factor is the sum of its
-/// element links, and [`FormFactors::element_pair`] returns the links themselves.
-pub struct MatrixFormFactors<'a> {
-    coupling: &'a CouplingMatrix,
-    /// Per element, its near links summed by patch: (patch, Σ F_{e→e'} over e' ∈ patch).
-    near_sums: Vec<Vec<(u32, f32)>>,
-    /// Per element, its near links sorted by source element (for [`FormFactors::element_pair`]).
-    near_sorted: Vec<Vec<(u32, f32)>>,
-}
-
-impl<'a> MatrixFormFactors<'a> {
-    pub fn new(mesh: &Mesh, coupling: &'a CouplingMatrix) -> Self {
-        let near_sums = coupling
-            .near
-            .iter()
-            .map(|links| {
-                let mut sums: Vec<(u32, f32)> = Vec::new();
-                for &(s, f) in links {
-                    let p = mesh.elements[s as usize].patch.0;
-                    match sums.iter_mut().find(|(q, _)| *q == p) {
-                        Some(entry) => entry.1 += f,
-                        None => sums.push((p, f)),
-                    }
-                }
-                sums
-            })
-            .collect();
-        let near_sorted = coupling
-            .near
-            .iter()
-            .map(|links| {
-                let mut sorted = links.clone();
-                sorted.sort_by_key(|(s, _)| *s);
-                sorted
-            })
-            .collect();
-        Self {
-            coupling,
-            near_sums,
-            near_sorted,
-        }
-    }
-
-    fn near_sum(&self, element: usize, patch: usize) -> f32 {
-        self.near_sums[element]
-            .iter()
-            .find(|(p, _)| *p as usize == patch)
-            .map_or(0.0, |(_, f)| *f)
-    }
-}
-
-impl FormFactors for MatrixFormFactors<'_> {
-    fn name(&self) -> &'static str {
-        "matrix"
-    }
-
-    fn pair(&self, element: usize, patch: usize) -> f64 {
-        (self.coupling.data[element * self.coupling.patches + patch]
-            + self.near_sum(element, patch)) as f64
-    }
-
-    fn column(&self, patch: usize, out: &mut [f32]) {
-        let m = self.coupling.patches;
-        out.par_iter_mut()
-            .with_min_len(4096)
-            .enumerate()
-            .for_each(|(e, f)| *f = self.coupling.data[e * m + patch] + self.near_sum(e, patch));
-    }
-
-    fn element_pair(&self, element: usize, source: usize) -> Option<f64> {
-        let links = &self.near_sorted[element];
-        Some(
-            links
-                .binary_search_by_key(&(source as u32), |(s, _)| *s)
-                .map_or(0.0, |i| links[i].1 as f64),
-        )
-    }
-
-    fn resolves_elements(&self) -> bool {
-        self.coupling.near.iter().any(|links| !links.is_empty())
-    }
-
-    fn row(&self, element: usize, out: &mut [f32]) {
-        out.copy_from_slice(self.coupling.row(element));
-        for &(p, f) in &self.near_sums[element] {
-            out[p as usize] += f;
-        }
-    }
-}
-
 /// ε(B) against a fixed reference (see the module documentation).
 struct ErrorMeasure {
     reference: Vec<[f64; 3]>,
@@ -360,12 +253,13 @@ impl ErrorMeasure {
     }
 }
 
-/// Runs every solver on `mesh` with form factors from `ff` (computed once into a matrix)
-/// and records each one's error after every iteration or shot.
+/// Runs every solver on `mesh` with form factors by `method` (computed once into the dense
+/// coupling and shared) and records each one's error after every iteration or shot, by
+/// watching the library's own solvers ([`radiosity::solve::Observer`]).
 pub fn compare(
     scene: &str,
     mesh: &Mesh,
-    ff: &dyn FormFactors,
+    method: FormFactorMethod,
     options: &CompareOptions,
     progress: &dyn Progress,
 ) -> Result<Comparison, CompareError> {
@@ -376,8 +270,7 @@ pub fn compare(
         return Err(CompareError::BadTarget(options.target_error));
     }
     let (n, m) = (mesh.len(), mesh.patches.len());
-    let mm = m as u128 * m as u128;
-    let needed = CouplingMatrix::bytes_for(n, m);
+    let needed = solver_memory(SolverKind::GaussSeidel, n, m);
     if needed > options.memory_limit as u128 {
         return Err(CompareError::OutOfMemory {
             elements: n,
@@ -386,32 +279,35 @@ pub fn compare(
             limit_mib: options.memory_limit >> 20,
         });
     }
-    // The direct solve's patch matrix and LU factors: 5 m² values per channel-triple, as
-    // `solve::solve` reckons.
-    let direct_extra = 5 * 8 * mm;
-    let direct_fits = needed + direct_extra <= options.memory_limit as u128;
+    let direct_fits = solver_memory(SolverKind::Direct, n, m) <= options.memory_limit as u128;
 
-    let clock = Instant::now();
-    let k = CouplingMatrix::compute(ff, mesh, progress);
-    let form_factor_seconds = clock.elapsed().as_secs_f64();
-    let transport = Transport::new(mesh, &k);
-    let start_b = transport.exitance();
+    let visibility = Visibility::new(mesh);
+    let near = NearField::decide(mesh);
+    let engine = engine(method, mesh, &visibility, &near.per_element);
+    let coupling = Dense::compute(mesh, engine.as_ref(), &near, progress);
+    let form_factor_seconds = coupling.form_factor_seconds();
+    let start_b = radiosity::solve::exitance(mesh);
     check_finite(&start_b, Method::Jacobi)?;
 
     let mut runs = Vec::new();
     let (reference, measure) = if direct_fits {
         progress.start("direct", 1);
-        let clock = Instant::now();
-        let (elements_b, _, _) = direct::solve(&transport, &SolveOptions::default());
-        let seconds = clock.elapsed().as_secs_f64();
+        let direct = solve(
+            &coupling,
+            &SolveOptions {
+                solver: SolverKind::Direct,
+                ..Default::default()
+            },
+            &mut NoObserver,
+        )
+        .map_err(|_| CompareError::Diverged(Method::Direct.label()))?;
         progress.finish();
-        check_finite(&elements_b, Method::Direct)?;
-        let measure = ErrorMeasure::new(mesh, elements_b);
+        let measure = ErrorMeasure::new(mesh, direct.radiosity);
         runs.push(Run {
             method: Method::Direct,
             samples: vec![Sample {
                 iteration: 1,
-                seconds,
+                seconds: direct.stats.seconds,
                 error: 0.0,
             }],
             note: Some("the reference".into()),
@@ -419,137 +315,83 @@ pub fn compare(
         (Reference::Direct, measure)
     } else {
         let tight = SolveOptions {
+            solver: SolverKind::GaussSeidel,
             tolerance: 1e-12,
             max_iterations: 100_000,
             ..Default::default()
         };
-        let (elements_b, iterations, residual) = gauss_seidel::solve(&transport, &tight, progress);
-        check_finite(&elements_b, Method::GaussSeidel)?;
+        let reference = solve(&coupling, &tight, &mut NoObserver)
+            .map_err(|_| CompareError::Diverged(Method::GaussSeidel.label()))?;
         runs.push(Run {
             method: Method::Direct,
             samples: Vec::new(),
             note: Some(format!(
                 "skipped: the dense LU would need {} MiB more than the {} MiB allowed",
-                ((needed + direct_extra).saturating_sub(options.memory_limit as u128)) >> 20,
+                (solver_memory(SolverKind::Direct, n, m)
+                    .saturating_sub(options.memory_limit as u128))
+                    >> 20,
                 options.memory_limit >> 20
             )),
         });
         (
             Reference::GaussSeidel {
-                iterations,
-                residual,
+                iterations: reference.stats.iterations,
+                residual: reference.stats.residual,
             },
-            ErrorMeasure::new(mesh, elements_b),
+            ErrorMeasure::new(mesh, reference.radiosity),
         )
     };
 
-    let stop = |e: f64| e <= options.target_error;
-    // Jacobi.
-    {
-        let mut b = start_b.clone();
-        let mut solver_seconds = 0.0;
-        let mut samples = vec![Sample {
-            iteration: 0,
-            seconds: solver_seconds,
-            error: measure.error(&start_b),
-        }];
-        progress.start("jacobi", options.max_iterations as u64);
-        for it in 1..=options.max_iterations {
-            let clock = Instant::now();
-            b = jacobi::step(&transport, &b);
-            solver_seconds += clock.elapsed().as_secs_f64();
-            check_finite(&b, Method::Jacobi)?;
-            let error = measure.error(&b);
+    // The iterative solvers run until the observer sees the target error (their own
+    // tolerance is set out of reach) or the cap; the observer records every step.
+    for (method, solver) in [
+        (Method::Jacobi, SolverKind::Jacobi),
+        (Method::GaussSeidel, SolverKind::GaussSeidel),
+    ] {
+        let mut samples = Vec::new();
+        let mut diverged = false;
+        progress.start(solver.name(), options.max_iterations as u64);
+        let mut watch = |step: &Step<'_>| {
+            let error = measure.error(step.radiosity);
+            diverged |= !error.is_finite();
             samples.push(Sample {
-                iteration: it,
-                seconds: solver_seconds,
+                iteration: step.index,
+                seconds: step.elapsed,
                 error,
             });
-            progress.inc(1);
-            if stop(error) {
-                break;
+            progress.inc(u64::from(step.index > 0));
+            if error <= options.target_error || diverged {
+                Flow::Stop
+            } else {
+                Flow::Continue
             }
-        }
-        progress.finish();
-        runs.push(finish_run(Method::Jacobi, samples, options));
-    }
-    // Gauss–Seidel.
-    {
-        let clock = Instant::now();
-        let mut b = start_b.clone();
-        let mut bp = transport.patch_means(&b);
-        let patch_area: Vec<f64> = mesh.patches.iter().map(|p| mesh.patch_area(p)).collect();
-        let mut solver_seconds = clock.elapsed().as_secs_f64();
-        let mut samples = vec![Sample {
-            iteration: 0,
-            seconds: solver_seconds,
-            error: measure.error(&start_b),
-        }];
-        progress.start("gauss-seidel", options.max_iterations as u64);
-        for it in 1..=options.max_iterations {
-            let clock = Instant::now();
-            gauss_seidel::sweep(&transport, &mut b, &mut bp, &patch_area);
-            solver_seconds += clock.elapsed().as_secs_f64();
-            check_finite(&b, Method::GaussSeidel)?;
-            let error = measure.error(&b);
-            samples.push(Sample {
-                iteration: it,
-                seconds: solver_seconds,
-                error,
-            });
-            progress.inc(1);
-            if stop(error) {
-                break;
-            }
-        }
-        progress.finish();
-        runs.push(finish_run(Method::GaussSeidel, samples, options));
-    }
-    // Progressive refinement, plain and with the ambient term (the same shots), then with
-    // overshooting.
-    let columns = MatrixFormFactors::new(mesh, &k);
-    let cap = options.max_shots.unwrap_or(200 * m.max(1));
-    for omega in [1.0, options.overshoot] {
-        let solve_options = SolveOptions {
-            overshoot: omega,
-            memory_limit: options
-                .memory_limit
-                .saturating_sub(needed.min(u64::MAX as u128) as u64),
+        };
+        let run_options = SolveOptions {
+            solver,
+            tolerance: f64::MIN_POSITIVE,
+            max_iterations: options.max_iterations,
             ..Default::default()
         };
-        let clock = Instant::now();
-        let mut state = Progressive::new(mesh, &solve_options);
-        let mut solver_seconds = clock.elapsed().as_secs_f64();
-        // Classifying near and far pairs belongs to the form factors (the matrix solvers got
-        // it with the coupling), so it is left out of the shots' time.
-        state.prepare(mesh, &columns);
+        let result = solve(&coupling, &run_options, &mut watch);
+        progress.finish();
+        if diverged || result.is_err() {
+            return Err(CompareError::Diverged(method.label()));
+        }
+        runs.push(finish_run(method, samples, options));
+    }
+
+    // Progressive refinement, plain and with the ambient term (the same shots), then with
+    // overshooting; columns come from the dense coupling.
+    let cap = options.max_shots.unwrap_or(200 * m.max(1));
+    for omega in [1.0, options.overshoot] {
         let with_ambient = omega == 1.0;
-        let evaluate = |state: &Progressive| -> (f64, f64) {
-            let solution = state.solution(0.0);
-            let plain = measure.error(&solution.radiosity);
-            let ambient = if with_ambient {
-                measure.error(&solution.display_radiosity(mesh, true))
-            } else {
-                plain
-            };
-            (plain, ambient)
-        };
-        let (e0, a0) = evaluate(&state);
-        let mut plain = vec![Sample {
-            iteration: 0,
-            seconds: solver_seconds,
-            error: e0,
-        }];
-        let mut ambient = vec![Sample {
-            iteration: 0,
-            seconds: solver_seconds,
-            error: a0,
-        }];
         let method = if with_ambient {
             Method::Progressive
         } else {
             Method::ProgressiveOvershoot(omega)
         };
+        let (mut plain, mut ambient) = (Vec::new(), Vec::new());
+        let mut diverged = false;
         progress.start(
             if with_ambient {
                 "progressive"
@@ -558,36 +400,43 @@ pub fn compare(
             },
             cap as u64,
         );
-        let mut exhausted = false;
-        while state.shots() < cap {
-            let clock = Instant::now();
-            let shot = state.shoot(mesh, &columns);
-            solver_seconds += clock.elapsed().as_secs_f64();
-            if !shot {
-                exhausted = true;
-                break;
-            }
-            let (e, a) = evaluate(&state);
-            if !(e.is_finite() && a.is_finite()) {
-                return Err(CompareError::Diverged(method.label()));
-            }
-            let iteration = state.shots();
+        let mut watch = |step: &Step<'_>| {
+            let e = measure.error(step.radiosity);
+            let a = match step.unshot {
+                Some(unshot) if with_ambient => {
+                    let shown = display_radiosity(step.mesh, step.radiosity, unshot, true);
+                    measure.error(&shown)
+                }
+                _ => e,
+            };
+            diverged |= !(e.is_finite() && a.is_finite());
             plain.push(Sample {
-                iteration,
-                seconds: solver_seconds,
+                iteration: step.index,
+                seconds: step.elapsed,
                 error: e,
             });
             ambient.push(Sample {
-                iteration,
-                seconds: solver_seconds,
+                iteration: step.index,
+                seconds: step.elapsed,
                 error: a,
             });
-            progress.inc(1);
-            if stop(e) && stop(a) {
-                break;
+            progress.inc(u64::from(step.index > 0));
+            if (e <= options.target_error && a <= options.target_error) || diverged {
+                Flow::Stop
+            } else {
+                Flow::Continue
             }
-        }
+        };
+        let solve_options = SolveOptions {
+            overshoot: omega,
+            ..Default::default()
+        };
+        let mut state = Progressive::new(&coupling, &solve_options);
+        let exhausted = state.run(&coupling, 0.0, cap, &mut watch);
         progress.finish();
+        if diverged {
+            return Err(CompareError::Diverged(method.label()));
+        }
         let mut run = finish_run(method, plain, options);
         if exhausted {
             run.note = Some("nothing left to shoot".into());
@@ -597,12 +446,11 @@ pub fn compare(
             runs.push(finish_run(Method::ProgressiveAmbient, ambient, options));
         }
     }
-    // Keep the order of the legend: progressive, ambient, overshoot.
     Ok(Comparison {
         scene: scene.to_owned(),
         elements: n,
         patches: m,
-        form_factor: ff.name().to_owned(),
+        form_factor: method.name().to_owned(),
         form_factor_seconds,
         reference,
         runs,
@@ -745,7 +593,7 @@ impl Comparison {
         use plotters::prelude::{BitMapBackend, IntoDrawingArea, SVGBackend};
         let table = self.table_markdown();
         let path = dir.join("table.md");
-        crate::io::atomic::write_atomically(&path, |w| w.write_all(table.as_bytes()))
+        radiosity::io::atomic::write_atomically(&path, |w| w.write_all(table.as_bytes()))
             .map_err(|e| write_error(&path, e))?;
 
         register_font().map_err(|e| write_error(&path, e))?;
@@ -755,7 +603,7 @@ impl Comparison {
             let root = SVGBackend::with_string(&mut svg, PLOT_SIZE).into_drawing_area();
             self.draw(root).map_err(|e| write_error(&svg_path, e))?;
         }
-        crate::io::atomic::write_atomically(&svg_path, |w| w.write_all(svg.as_bytes()))
+        radiosity::io::atomic::write_atomically(&svg_path, |w| w.write_all(svg.as_bytes()))
             .map_err(|e| write_error(&svg_path, e))?;
 
         let png_path = dir.join("convergence.png");
@@ -926,10 +774,10 @@ fn write_error(path: &Path, e: impl std::fmt::Display) -> CompareError {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::cornell::cornell_box;
-    use crate::formfactor::{FormFactorMethod, Visibility};
-    use crate::mesh::MeshOptions;
-    use crate::progress::NoProgress;
+    use radiosity::cornell::cornell_box;
+    use radiosity::mesh::MeshOptions;
+    use radiosity::progress::NoProgress;
+    use std::sync::OnceLock;
 
     fn mesh() -> &'static Mesh {
         static M: OnceLock<Mesh> = OnceLock::new();
@@ -943,10 +791,13 @@ mod tests {
     }
 
     fn run_with(options: &CompareOptions) -> Result<Comparison, CompareError> {
-        let mesh = mesh();
-        let visibility = Visibility::new(mesh);
-        let ff = FormFactorMethod::default().engine(mesh, &visibility);
-        compare("cornell", mesh, ff.as_ref(), options, &NoProgress)
+        compare(
+            "cornell",
+            mesh(),
+            FormFactorMethod::default(),
+            options,
+            &NoProgress,
+        )
     }
 
     /// The Cornell box at ~400 elements, every solver (shared by the tests below).

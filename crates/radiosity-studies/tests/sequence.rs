@@ -1,19 +1,22 @@
-//! Progressive image sequences (`radiosity::sequence`): frame N shows exactly N shots, a run
+//! Progressive image sequences (`radiosity_studies::sequence`): frame N shows exactly N shots, a run
 //! to convergence ends on the `render` image, the ambient term brings early frames closer to
 //! the converged brightness, adaptive sequences grow the mesh, and the contact sheet.
 //!
 //! Small meshes (~600 elements) and small images keep each test to about a second in release.
 
+use radiosity::accel::Visibility;
 use radiosity::cornell::{cornell_box, cornell_camera};
+use radiosity::coupling::{Columns, NearField};
 use radiosity::display::Shading;
-use radiosity::formfactor::Visibility;
-use radiosity::mesh::{Mesh, MeshOptions};
-use radiosity::pipeline::{render_elements, solve_scene, Shaded, SolveSettings};
+use radiosity::formfactor::engine;
+use radiosity::mesh::{Mesh, MeshOptions, RefineOptions};
+use radiosity::pipeline::{render_elements, solve_mesh, solve_scene, Shaded, SolveSettings};
 use radiosity::progress::NoProgress;
-use radiosity::refine::RefineOptions;
 use radiosity::render::{srgb_byte, Image, RenderOptions};
-use radiosity::sequence::{contact_sheet, run, Sequence, SequenceError, SequenceOptions, View};
-use radiosity::solve::{progressive, SolveOptions};
+use radiosity::solve::{progressive, NoObserver, SolveOptions};
+use radiosity_studies::sequence::{
+    contact_sheet, run, Sequence, SequenceError, SequenceOptions, View,
+};
 
 fn settings(elements: usize, tolerance: f64) -> SolveSettings {
     SolveSettings {
@@ -66,20 +69,21 @@ fn frame_n_shows_exactly_n_shots_at_the_requested_size() {
     // The same mesh and form factors, solved by the plain progressive solver capped at N
     // shots: the frame's radiosity must be that solution (same shots in the same order).
     let mesh = Mesh::build(&cornell_box(), &settings.mesh).unwrap();
-    let visibility = Visibility::new(&mesh);
-    let ff = settings.form_factor.engine(&mesh, &visibility);
     for (frame, &n) in seq.frames.iter().zip(&frames) {
         let r = &frame.record;
         assert_eq!((r.requested, r.shots), (n, n));
         assert!(!r.converged);
         assert_eq!((frame.image.width, frame.image.height), (40, 30));
         assert_eq!(frame.image.pixels.len(), 40 * 30);
-        let capped = SolveOptions {
-            max_shots: Some(n),
-            tolerance: 1e-12,
-            ..Default::default()
+        let capped = SolveSettings {
+            solve: SolveOptions {
+                max_shots: Some(n),
+                tolerance: 1e-12,
+                ..Default::default()
+            },
+            ..settings
         };
-        let want = progressive::solve(&mesh, ff.as_ref(), &capped, &NoProgress).unwrap();
+        let want = solve_mesh(&mesh, &capped, &NoProgress, &mut NoObserver).unwrap();
         assert_eq!(want.stats.iterations, n);
         assert!((want.stats.residual - r.unshot_fraction).abs() < 1e-12);
         for (got, want) in frame.radiosity.iter().zip(&want.radiosity) {
@@ -249,7 +253,7 @@ fn adaptive_sequence_grows_the_mesh_and_keeps_the_shot_counts() {
 
 #[test]
 fn bad_sequences_fail_with_a_clear_error() {
-    let mut s = settings(100, 1e-3);
+    let s = settings(100, 1e-3);
     let v = view(8, 8);
     let options = |frames: Vec<usize>| SequenceOptions {
         frames,
@@ -264,16 +268,22 @@ fn bad_sequences_fail_with_a_clear_error() {
         err(&s, options(vec![8, 8])),
         SequenceError::NotIncreasing { .. }
     ));
-    s.solve.overshoot = 2.5;
-    let e = err(&s, options(vec![0, 1]));
-    assert!(matches!(e, SequenceError::BadOvershoot(_)));
-    assert!(e.to_string().contains("2.5"));
-    s.solve.overshoot = 1.0;
-    s.solve.tolerance = f64::NAN;
-    assert!(matches!(
-        err(&s, options(vec![0, 1])),
-        SequenceError::BadTolerance(_)
-    ));
+    // Bad solver values are refused where settings are resolved, once, naming the flag
+    // (the sequence takes resolved settings).
+    let flags = radiosity::settings::Overrides {
+        overshoot: Some(2.5),
+        ..Default::default()
+    };
+    let e = radiosity::settings::resolve(None, &flags).unwrap_err();
+    assert!(
+        e.to_string().contains("--overshoot") && e.to_string().contains("2.5"),
+        "{e}"
+    );
+    let flags = radiosity::settings::Overrides {
+        tolerance: Some(f64::NAN),
+        ..Default::default()
+    };
+    assert!(radiosity::settings::resolve(None, &flags).is_err());
 }
 
 #[test]
@@ -317,14 +327,20 @@ fn contact_sheet_places_frames_and_labels() {
 /// overshoot factors ω, with form factors computed on the fly as `radiosity progressive`
 /// does: with the column cache (each patch's column computed once) and without (every shot
 /// computes its column, as when memory is short).
-/// Run: `cargo test --release -p radiosity --test sequence -- --ignored --nocapture overshoot`.
+/// Run: `cargo test --release -p radiosity-studies --test sequence -- --ignored --nocapture overshoot`.
 #[test]
 #[ignore = "measurement (about a minute); prints a table"]
 fn measure_overshoot_benefit() {
     let scene = cornell_box();
     let mesh = Mesh::build(&scene, &MeshOptions::default()).unwrap();
     let visibility = Visibility::new(&mesh);
-    let ff = radiosity::formfactor::FormFactorMethod::default().engine(&mesh, &visibility);
+    let near = NearField::decide(&mesh);
+    let ff = engine(
+        radiosity::formfactor::FormFactorMethod::default(),
+        &mesh,
+        &visibility,
+        &near.per_element,
+    );
     println!("{} elements, {} patches", mesh.len(), mesh.patches.len());
     println!("| ω | shots to 1e-2 | shots to 1e-3 | s to 1e-2 (cached) | s to 1e-3 (cached) | s to 1e-2 (uncached) | s to 1e-3 (uncached) |");
     println!("|---|---|---|---|---|---|---|");
@@ -337,11 +353,12 @@ fn measure_overshoot_benefit() {
                 memory_limit,
                 ..Default::default()
             };
-            let mut state = progressive::Progressive::new(&mesh, &options);
+            let coupling = Columns::new(&mesh, ff.as_ref(), &near, memory_limit / 2);
+            let mut state = progressive::Progressive::new(&coupling, &options);
             let start = std::time::Instant::now();
             for target in [1e-2, 1e-3] {
                 while state.unshot_fraction() > target && state.shots() < 100 * mesh.patches.len() {
-                    state.shoot(&mesh, ff.as_ref());
+                    state.shoot(&coupling);
                 }
                 if memory_limit > 0 {
                     row += &format!("| {} ", state.shots());
@@ -355,7 +372,7 @@ fn measure_overshoot_benefit() {
 
 /// Measurement, not a check: the mean displayed radiance of frames 8 and 16 with and without
 /// the ambient term on the default Cornell mesh, against the converged image.
-/// Run: `cargo test --release -p radiosity --test sequence -- --ignored --nocapture ambient_means`.
+/// Run: `cargo test --release -p radiosity-studies --test sequence -- --ignored --nocapture ambient_means`.
 #[test]
 #[ignore = "measurement; prints a table"]
 fn measure_ambient_means() {

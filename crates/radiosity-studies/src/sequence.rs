@@ -12,24 +12,24 @@
 //! not too dark; both sequences converge to the same image.
 //!
 //! With adaptive refinement the mesh starts coarse and, after each frame, the elements where
-//! the current radiosity changes fast are split ([`crate::refine`]); the state moves onto the
+//! the current radiosity changes fast are split ([`radiosity::mesh::refine`]); the state moves onto the
 //! refined mesh with [`Progressive::refine`], so later frames show the mesh growing.
 //!
 //! See also: `radiosity progressive` (the command that writes the frames and the sheet).
 
-use crate::display::Shading;
-use crate::formfactor::Visibility;
-use crate::mesh::Mesh;
-use crate::pipeline::{render_elements, PipelineError, Shaded, SolveSettings};
-use crate::progress::Progress;
-use crate::refine::RefineOptions;
-use crate::render::{srgb_byte, Image, RenderOptions};
-use crate::scene::{Camera, Scene};
-use crate::solve::progressive::Progressive;
-use crate::solve::Solution;
+use radiosity::accel::Visibility;
+use radiosity::coupling::{Columns, Coupling, NearField};
+use radiosity::display::Shading;
+use radiosity::formfactor::engine;
+use radiosity::mesh::{Mesh, RefineOptions};
+use radiosity::pipeline::{render_elements, PipelineError, Shaded, SolveSettings};
+use radiosity::progress::Progress;
+use radiosity::render::{srgb_byte, Image, RenderOptions};
+use radiosity::scene::{Camera, Scene};
+use radiosity::solve::progressive::Progressive;
+use radiosity::solve::{Flow, Solution, Step};
 use std::f64::consts::PI;
 use std::path::Path;
-use std::time::Instant;
 
 /// The most frames one sequence may ask for (the contact sheet has to stay viewable).
 pub const MAX_FRAMES: usize = 64;
@@ -42,7 +42,7 @@ pub struct SequenceOptions {
     /// Display B_e + ρ_e·ambient instead of the plain partial solution.
     pub ambient: bool,
     /// Refine the mesh adaptively between frames, starting from the coarse mesh
-    /// ([`crate::pipeline::coarse_mesh_options`]).
+    /// ([`radiosity::pipeline::coarse_mesh_options`]).
     pub adaptive: Option<RefineOptions>,
 }
 
@@ -138,10 +138,6 @@ pub enum SequenceError {
     NotIncreasing { previous: usize, next: usize },
     #[error("--frames: at most {MAX_FRAMES} frames, got {0}")]
     TooManyFrames(usize),
-    #[error("overshoot factor must be in (0, 2), got {0}")]
-    BadOvershoot(f64),
-    #[error("tolerance must be positive and finite, got {0}")]
-    BadTolerance(f64),
     #[error(transparent)]
     Pipeline(#[from] PipelineError),
     #[error("writing {path}: {message}")]
@@ -188,7 +184,8 @@ fn check_frames(frames: &[usize]) -> Result<(), SequenceError> {
 /// Shooting stops at the last requested count or when the unshot power falls below
 /// `settings.solve.tolerance` (a fraction of the emitted power), whichever comes first;
 /// `settings.solve.max_shots` does not apply (the frames decide). With
-/// `options.adaptive`, the mesh is refined after every frame but the last.
+/// `options.adaptive`, the mesh is refined after every frame but the last. The shots are
+/// the library's own ([`Progressive::run`]), watched between frames.
 pub fn run(
     scene: &Scene,
     settings: &SolveSettings,
@@ -197,58 +194,50 @@ pub fn run(
     progress: &dyn Progress,
 ) -> Result<Sequence, SequenceError> {
     check_frames(&options.frames)?;
-    let omega = settings.solve.overshoot;
-    if !(omega > 0.0 && omega < 2.0) {
-        return Err(SequenceError::BadOvershoot(omega));
-    }
     let tolerance = settings.solve.tolerance;
-    if !(tolerance.is_finite() && tolerance > 0.0) {
-        return Err(SequenceError::BadTolerance(tolerance));
-    }
     let mesh_options = match options.adaptive {
-        Some(_) => crate::pipeline::coarse_mesh_options(&settings.mesh),
+        Some(_) => radiosity::pipeline::coarse_mesh_options(&settings.mesh),
         None => settings.mesh,
     };
-    let started = Instant::now();
     let mut mesh = Mesh::build(scene, &mesh_options).map_err(PipelineError::from)?;
     // Visibility depends only on the surface polygons, which refinement keeps.
     let visibility = Visibility::new(&mesh);
-    let mut state = Progressive::new(&mesh, &settings.solve);
+    let mut near = NearField::decide(&mesh);
     // Refinement budget when none is given: the element count of the uniform mesh.
     let refine = options.adaptive.map(|r| RefineOptions {
         max_elements: r.max_elements.or(Some(settings.mesh.elements)),
         ..r
     });
     let last = options.frames[options.frames.len() - 1];
-    let mut rendering = 0.0;
+    let cache = settings.solve.memory_limit / 2;
     let mut frames = Vec::with_capacity(options.frames.len());
+    let mut state: Option<Progressive> = None;
+    let mut form_factor_seconds = 0.0;
     progress.start("progressive", last as u64);
+    let mut shown = 0usize;
     for (k, &requested) in options.frames.iter().enumerate() {
-        let mut exhausted = false;
-        {
-            let ff = settings.form_factor.engine(&mesh, &visibility);
-            while state.shots() < requested && state.unshot_fraction() > tolerance {
-                if !state.shoot(&mesh, ff.as_ref()) {
-                    exhausted = true;
-                    break;
-                }
-                progress.inc(1);
-                if state.shots() % 8 == 0 {
-                    progress.message(&format!(
-                        "unshot {}",
-                        format_fraction(state.unshot_fraction())
-                    ));
-                }
+        let ff = engine(settings.form_factor, &mesh, &visibility, &near.per_element);
+        let coupling = Columns::new(&mesh, ff.as_ref(), &near, cache);
+        let state = state.get_or_insert_with(|| Progressive::new(&coupling, &settings.solve));
+        let mut watch = |step: &Step<'_>| {
+            if step.index > shown {
+                progress.inc((step.index - shown) as u64);
+                shown = step.index;
             }
-        }
+            if step.index % 8 == 0 {
+                progress.message(&format!("unshot {}", format_fraction(step.residual)));
+            }
+            Flow::Continue
+        };
+        let exhausted = state.run(&coupling, tolerance, requested, &mut watch);
+        form_factor_seconds += coupling.form_factor_seconds();
         let shots = state.shots();
         if shots < requested {
             // Converged early: the bar would otherwise stop short.
-            progress.inc((requested - shots) as u64);
+            progress.inc((requested.max(shown) - shown) as u64);
+            shown = requested.max(shown);
         }
-        let render_start = Instant::now();
-        let solve_seconds = render_start.duration_since(started).as_secs_f64() - rendering;
-        let solution = state.solution(solve_seconds);
+        let solution = state.solution(&coupling);
         let radiosity = solution.display_radiosity(&mesh, options.ambient);
         let shaded = Shaded {
             vertices: &mesh.vertices,
@@ -269,10 +258,9 @@ pub fn run(
             unshot_fraction,
             converged: exhausted || unshot_fraction <= tolerance,
             elements: mesh.len(),
-            seconds: solve_seconds,
+            seconds: solution.stats.seconds,
             mean_radiance: mean_radiance(&mesh, &radiosity),
         };
-        rendering += render_start.elapsed().as_secs_f64();
         let converged = record.converged;
         frames.push(Frame {
             record,
@@ -281,23 +269,42 @@ pub fn run(
         });
         if let Some(refine) = &refine {
             if k + 1 < options.frames.len() && !converged {
-                let marked = crate::refine::mark(&mesh, &solution.radiosity, refine);
+                let marked = radiosity::mesh::refine::mark(&mesh, &solution.radiosity, refine);
                 if marked.iter().any(|m| *m) {
-                    let refined = crate::refine::refine(&mesh, &marked);
+                    let refined = radiosity::mesh::refine::refine(&mesh, &marked);
+                    let refined_near = NearField::decide(&refined);
                     {
-                        let ff = settings.form_factor.engine(&refined, &visibility);
-                        state.refine(&mesh, &refined, ff.as_ref());
+                        let refined_ff = engine(
+                            settings.form_factor,
+                            &refined,
+                            &visibility,
+                            &refined_near.per_element,
+                        );
+                        let refined_coupling =
+                            Columns::new(&refined, refined_ff.as_ref(), &refined_near, cache);
+                        state.refine(&mesh, &refined_coupling);
                     }
+                    drop(coupling);
+                    drop(ff);
                     mesh = refined;
+                    near = refined_near;
                 }
             }
         }
     }
     progress.finish();
-    let seconds = started.elapsed().as_secs_f64() - rendering;
+    let mut solution = {
+        let ff = engine(settings.form_factor, &mesh, &visibility, &near.per_element);
+        let coupling = Columns::new(&mesh, ff.as_ref(), &near, cache);
+        state
+            .as_ref()
+            .map(|s| s.solution(&coupling))
+            .ok_or(SequenceError::NoFrames)?
+    };
+    solution.stats.form_factor_seconds = form_factor_seconds;
     Ok(Sequence {
         frames,
-        solution: state.solution(seconds),
+        solution,
         mesh,
     })
 }
@@ -342,12 +349,11 @@ pub fn contact_sheet(
     tiles: &[(&Image, Vec<String>)],
     exposure: f32,
 ) -> Result<image::RgbImage, SequenceError> {
-    let font = ab_glyph::FontRef::try_from_slice(crate::compare::FONT).map_err(|e| {
-        SequenceError::Write {
+    let font =
+        ab_glyph::FontRef::try_from_slice(crate::font::FONT).map_err(|e| SequenceError::Write {
             path: "contact sheet".into(),
             message: format!("the bundled font: {e}"),
-        }
-    })?;
+        })?;
     let columns = tiles.len().clamp(1, SHEET_COLUMNS);
     let rows = tiles.len().div_ceil(columns).max(1);
     let frame_w = tiles.iter().map(|t| t.0.width).max().unwrap_or(1);
@@ -441,7 +447,7 @@ fn draw_text(
 /// Writes an 8-bit RGB image as PNG, atomically (a temporary name, renamed when complete).
 pub fn write_png(image: &image::RgbImage, path: &Path) -> Result<(), SequenceError> {
     use image::ImageEncoder;
-    crate::io::atomic::write_atomically(path, |w| {
+    radiosity::io::atomic::write_atomically(path, |w| {
         image::codecs::png::PngEncoder::new(w)
             .write_image(
                 image.as_raw(),

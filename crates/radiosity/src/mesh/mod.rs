@@ -10,7 +10,13 @@
 //! barycentric lattice, so elements of one surface share their vertices: the display mesh has
 //! no cracks inside a surface.
 
-use crate::geometry::Polygon;
+pub mod contacts;
+pub mod refine;
+
+pub use contacts::split_at_contacts;
+pub use refine::RefineOptions;
+
+use crate::geometry::{Lattice, Polygon};
 use crate::scene::{Scene, SurfaceId};
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
@@ -220,6 +226,41 @@ impl Mesh {
         self.surfaces[e.surface as usize].exitance
     }
 
+    /// Corners of an element, counter-clockwise seen from its front.
+    pub fn element_corners(&self, e: &Element) -> Vec<DVec3> {
+        e.corners
+            .iter()
+            .map(|&c| self.vertices[c as usize])
+            .collect()
+    }
+
+    /// Distance (m) from element `element`'s centre to the nearest other surface that can
+    /// exchange light with it (some of that surface lies in front of the element and some of
+    /// the element in front of it, by more than 10⁻⁹ of the element's size, so that coplanar
+    /// neighbours do not count); infinite when there is none.
+    pub fn clearance(&self, element: usize) -> f64 {
+        let e = &self.elements[element];
+        let corners = self.element_corners(e);
+        let size = corners
+            .iter()
+            .map(|c| c.distance(e.centre))
+            .fold(0.0, f64::max);
+        let tol = 1e-9 * size;
+        self.surface_polygons
+            .iter()
+            .enumerate()
+            .filter(|(s, poly)| {
+                *s != e.surface as usize
+                    && poly
+                        .vertices()
+                        .iter()
+                        .any(|v| (*v - e.centre).dot(e.normal) > tol)
+                    && corners.iter().any(|&k| poly.plane_distance(k) > tol)
+            })
+            .map(|(_, poly)| poly.distance_to(e.centre))
+            .fold(f64::INFINITY, f64::min)
+    }
+
     /// Area of a patch in m² (sum of its elements).
     pub fn patch_area(&self, p: &Patch) -> f64 {
         self.elements[p.elements.start as usize..p.elements.end as usize]
@@ -228,6 +269,10 @@ impl Mesh {
             .sum()
     }
 
+    /// Meshes one surface polygon: a quad on a bilinear lattice of `pu·ku × pv·kv` elements
+    /// grouped `ku × kv` into patches; a triangle (or each fan triangle of an n-gon, all on
+    /// one level so their shared diagonals conform) on a barycentric lattice of `(m·k)²`
+    /// elements grouped `k²` into `m²` patch triangles ([`Lattice`]).
     fn mesh_surface(&mut self, surface: SurfaceId, polygon: &Polygon, size: f64, sub: u32) {
         let mut welder = Welder::default();
         let v = polygon.vertices();
@@ -236,13 +281,10 @@ impl Mesh {
             let len_v = v[0].distance(v[3]).max(v[1].distance(v[2]));
             let (pu, ku) = split_count(len_u, size, sub);
             let (pv, kv) = split_count(len_v, size, sub);
-            let (nu, nv) = (pu * ku, pv * kv);
-            let point = |i: u32, j: u32| {
-                let (u, w) = (i as f64 / nu as f64, j as f64 / nv as f64);
-                (1.0 - u) * (1.0 - w) * v[0]
-                    + u * (1.0 - w) * v[1]
-                    + u * w * v[2]
-                    + (1.0 - u) * w * v[3]
+            let fine = Lattice::Quad {
+                corners: [v[0], v[1], v[2], v[3]],
+                nu: pu * ku,
+                nv: pv * kv,
             };
             for a in 0..pu {
                 for b in 0..pv {
@@ -251,80 +293,62 @@ impl Mesh {
                     for i in a * ku..(a + 1) * ku {
                         for j in b * kv..(b + 1) * kv {
                             let corners = [
-                                point(i, j),
-                                point(i + 1, j),
-                                point(i + 1, j + 1),
-                                point(i, j + 1),
+                                fine.point(i, j),
+                                fine.point(i + 1, j),
+                                fine.point(i + 1, j + 1),
+                                fine.point(i, j + 1),
                             ];
                             self.push_element(surface, patch, &corners, &mut welder);
                         }
                     }
                     let polygon = Polygon::new_unchecked(vec![
-                        point(a * ku, b * kv),
-                        point((a + 1) * ku, b * kv),
-                        point((a + 1) * ku, (b + 1) * kv),
-                        point(a * ku, (b + 1) * kv),
+                        fine.point(a * ku, b * kv),
+                        fine.point((a + 1) * ku, b * kv),
+                        fine.point((a + 1) * ku, (b + 1) * kv),
+                        fine.point(a * ku, (b + 1) * kv),
                     ]);
                     self.push_patch(surface, polygon, first);
                 }
             }
         } else {
-            // Triangles, and n-gons as a fan of triangles sharing one lattice level so the
-            // diagonals conform (lattice points on a shared diagonal are computed bit-identically).
-            let level_len = polygon
-                .triangles()
-                .flat_map(|t| {
-                    [
-                        t[0].distance(t[1]),
-                        t[1].distance(t[2]),
-                        t[2].distance(t[0]),
-                    ]
-                })
-                .fold(0.0, f64::max);
-            let (m, k) = split_count(level_len, size, sub);
-            let n = m * k;
+            let (m, k) = split_count(triangle_level_length(polygon, size), size, sub);
+            let coarse = Lattice::Triangle {
+                corners: [DVec3::ZERO; 3],
+                n: m,
+            };
             for [a0, b0, c0] in polygon.triangles() {
-                let point = |i: u32, j: u32| {
-                    a0 + (b0 - a0) * (i as f64 / n as f64) + (c0 - a0) * (j as f64 / n as f64)
+                let fine = Lattice::Triangle {
+                    corners: [a0, b0, c0],
+                    n: m * k,
                 };
                 // Patch triangles at level m, each divided into k² elements.
-                for pi in 0..m {
-                    for pj in 0..m - pi {
-                        let mut patch_tris = vec![[(pi, pj), (pi + 1, pj), (pi, pj + 1)]];
-                        if pj + 1 < m - pi {
-                            patch_tris.push([(pi + 1, pj), (pi + 1, pj + 1), (pi, pj + 1)]);
-                        }
-                        for [pa, pb, pc] in patch_tris {
-                            let first = self.elements.len() as u32;
-                            let patch = PatchId(self.patches.len() as u32);
-                            let lat = |a: u32, b: u32| {
-                                // lattice point pa + a/k (pb - pa) + b/k (pc - pa), in level-n units
-                                let i = (pa.0 * k) as i64
-                                    + a as i64 * (pb.0 as i64 - pa.0 as i64)
-                                    + b as i64 * (pc.0 as i64 - pa.0 as i64);
-                                let j = (pa.1 * k) as i64
-                                    + a as i64 * (pb.1 as i64 - pa.1 as i64)
-                                    + b as i64 * (pc.1 as i64 - pa.1 as i64);
-                                point(i as u32, j as u32)
-                            };
-                            for a in 0..k {
-                                for b in 0..k - a {
-                                    let tri = [lat(a, b), lat(a + 1, b), lat(a, b + 1)];
-                                    self.push_element(surface, patch, &tri, &mut welder);
-                                    if b + 1 < k - a {
-                                        let tri = [lat(a + 1, b), lat(a + 1, b + 1), lat(a, b + 1)];
-                                        self.push_element(surface, patch, &tri, &mut welder);
-                                    }
-                                }
-                            }
-                            let polygon = Polygon::new_unchecked(vec![
-                                point(pa.0 * k, pa.1 * k),
-                                point(pb.0 * k, pb.1 * k),
-                                point(pc.0 * k, pc.1 * k),
-                            ]);
-                            self.push_patch(surface, polygon, first);
-                        }
+                for patch_cell in coarse.cells() {
+                    let [pa, pb, pc] = [patch_cell[0], patch_cell[1], patch_cell[2]];
+                    let first = self.elements.len() as u32;
+                    let patch = PatchId(self.patches.len() as u32);
+                    // Point (a, b) of the patch's own k-lattice, in fine-lattice indices.
+                    let lat = |a: u32, b: u32| {
+                        let at = |p: u32, q: u32, r: u32| {
+                            (p * k) as i64
+                                + a as i64 * (q as i64 - p as i64)
+                                + b as i64 * (r as i64 - p as i64)
+                        };
+                        fine.point(at(pa.0, pb.0, pc.0) as u32, at(pa.1, pb.1, pc.1) as u32)
+                    };
+                    let local = Lattice::Triangle {
+                        corners: [DVec3::ZERO; 3],
+                        n: k,
+                    };
+                    for cell in local.cells() {
+                        let tri: Vec<DVec3> = cell.iter().map(|&(a, b)| lat(a, b)).collect();
+                        self.push_element(surface, patch, &tri, &mut welder);
                     }
+                    let polygon = Polygon::new_unchecked(vec![
+                        fine.point(pa.0 * k, pa.1 * k),
+                        fine.point(pb.0 * k, pb.1 * k),
+                        fine.point(pc.0 * k, pc.1 * k),
+                    ]);
+                    self.push_patch(surface, polygon, first);
                 }
             }
         }
@@ -371,9 +395,35 @@ fn split_count(length: f64, size: f64, sub: u32) -> (u32, u32) {
     (patches, per_patch)
 }
 
+/// The length a triangle (or every fan triangle of an n-gon) is divided by: its longest
+/// edge, except that a sliver (a long edge, little area) is divided by its area instead —
+/// at most 8·√(2A), which only polygons thinner than about 1 : 32 reach (a right
+/// isosceles triangle has 8a against its √2·a) — so that it cannot take more than its share
+/// of an element budget (elements per edge grow with length, elements with its square).
+fn triangle_level_length(polygon: &Polygon, size: f64) -> f64 {
+    let longest = polygon
+        .triangles()
+        .flat_map(|t| {
+            [
+                t[0].distance(t[1]),
+                t[1].distance(t[2]),
+                t[2].distance(t[0]),
+            ]
+        })
+        .fold(0.0, f64::max);
+    let by_area = 8.0 * (2.0 * polygon.area()).sqrt();
+    longest.min(by_area.max(size))
+}
+
 fn estimate_elements(polygon: &Polygon, size: f64) -> f64 {
-    let h = polygon.max_edge() / size;
-    (h.ceil() + 1.0).powi(2) * polygon.vertices().len() as f64
+    let v = polygon.vertices();
+    if v.len() == 4 {
+        let lu = v[0].distance(v[1]).max(v[3].distance(v[2]));
+        let lv = v[0].distance(v[3]).max(v[1].distance(v[2]));
+        return ((lu / size).ceil() + 1.0) * ((lv / size).ceil() + 1.0);
+    }
+    let h = triangle_level_length(polygon, size) / size;
+    (h.ceil() + 1.0).powi(2) * (v.len() - 2) as f64
 }
 
 /// Element edge length giving about `count` elements over the scene's total area.
@@ -391,7 +441,9 @@ fn size_for_count(polygons: &[&Polygon], count: usize) -> f64 {
                     let lv = v[0].distance(v[3]).max(v[1].distance(v[2]));
                     ((lu / h).ceil().max(1.0)) * ((lv / h).ceil().max(1.0))
                 } else {
-                    let l = p.max_edge();
+                    // The polygon's own longest edge (not the fan's diagonals): an estimate
+                    // that the meshes of the test scenes and benchmarks were tuned with.
+                    let l = p.max_edge().min((8.0 * (2.0 * p.area()).sqrt()).max(h));
                     (l / h).ceil().max(1.0).powi(2) * (v.len() - 2) as f64
                 }
             })
@@ -408,81 +460,6 @@ fn size_for_count(polygons: &[&Polygon], count: usize) -> f64 {
         }
     }
     hi
-}
-
-/// Splits surfaces along the lines where other surfaces touch them: an edge of another,
-/// non-parallel surface lying in a surface's plane and crossing its interior (a block
-/// standing on a floor). Radiosity is discontinuous there (lit outside, dark underneath:
-/// a D0 discontinuity in the sense of Heckbert 1992 and Lischinski, Tampieri & Greenberg
-/// 1992), so no element may straddle it. Each piece is cut by the whole line, which keeps
-/// pieces convex. Returns (scene surface index, piece) pairs in scene order.
-pub fn split_at_contacts(scene: &Scene) -> Vec<(usize, Polygon)> {
-    let mut out = Vec::new();
-    for (si, s) in scene.surfaces.iter().enumerate() {
-        let n = s.polygon.normal();
-        let tol = 1e-7 * s.polygon.diameter();
-        let mut pieces = vec![s.polygon.clone()];
-        for (ti, t) in scene.surfaces.iter().enumerate() {
-            if ti == si || t.polygon.normal().cross(n).length() < 1e-6 {
-                continue;
-            }
-            for (a, b) in t.polygon.edges() {
-                if s.polygon.plane_distance(a).abs() > tol
-                    || s.polygon.plane_distance(b).abs() > tol
-                {
-                    continue;
-                }
-                let cut = n.cross(b - a).normalize();
-                let mut next = Vec::with_capacity(pieces.len() + 1);
-                for piece in pieces {
-                    let split = crosses_interior(&piece, a, b, tol)
-                        .then(|| {
-                            let left = piece.clip_to_halfspace(a, cut)?;
-                            let right = piece.clip_to_halfspace(a, -cut)?;
-                            Some((Polygon::new(left).ok()?, Polygon::new(right).ok()?))
-                        })
-                        .flatten();
-                    match split {
-                        Some((l, r)) if l.area() > tol * tol && r.area() > tol * tol => {
-                            next.push(l);
-                            next.push(r);
-                        }
-                        _ => next.push(piece),
-                    }
-                }
-                pieces = next;
-            }
-        }
-        out.extend(pieces.into_iter().map(|p| (si, p)));
-    }
-    out
-}
-
-/// Whether the segment a–b (in the polygon's plane) passes through the polygon's interior.
-fn crosses_interior(polygon: &Polygon, a: DVec3, b: DVec3, tol: f64) -> bool {
-    // Cyrus–Beck clipping of the segment against the polygon's edges (inward normals).
-    let n = polygon.normal();
-    let (mut t0, mut t1) = (0.0f64, 1.0f64);
-    let d = b - a;
-    for (p, q) in polygon.edges() {
-        let inward = n.cross(q - p);
-        let len = inward.length();
-        let num = (a - p).dot(inward) / len;
-        let den = d.dot(inward) / len;
-        if den.abs() < 1e-15 {
-            if num <= tol {
-                return false; // parallel and on or outside this edge
-            }
-            continue;
-        }
-        let t = -num / den;
-        if den > 0.0 {
-            t0 = t0.max(t);
-        } else {
-            t1 = t1.min(t);
-        }
-    }
-    (t1 - t0) * d.length() > tol
 }
 
 /// Shares vertices that are bit-identical within one surface.

@@ -1,0 +1,8 @@
+//! Studies of the radiosity engine: the solver comparison (error against time and
+//! iterations, plotted) and progressive image sequences with their contact sheet — the
+//! pictures of the lecture. They watch the library's own solvers through its observer; the
+//! plotting and font dependencies live here, not in the core library.
+
+pub mod compare;
+pub mod font;
+pub mod sequence;

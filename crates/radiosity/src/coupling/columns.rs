@@ -1,0 +1,226 @@
+//! The element × patch coupling computed column by column, when a source shoots.
+//!
+//! Progressive refinement needs one column per shot: F_{e→p} for every element `e` and the
+//! near receivers' links to `p`'s elements. Computing columns on the fly needs O(n) memory
+//! instead of the dense matrix's O(n·m); columns are kept in a cache while it fits in its
+//! byte budget, so a patch that shoots again costs nothing. Gathering (for residuals and
+//! refinement) computes rows on the fly.
+
+use super::{patch_means, Coupling, NearField};
+use crate::formfactor::Engine;
+use crate::mesh::Mesh;
+use rayon::prelude::*;
+use std::collections::HashMap;
+use std::ops::Range;
+use std::sync::Mutex;
+use std::time::Instant;
+
+/// One shot's form factors: far values for every element, and near-field rows for the
+/// elements the patch is near to.
+struct Column {
+    far: Vec<f32>,
+    near: Vec<(u32, Vec<f32>)>,
+}
+
+impl Column {
+    fn bytes(&self) -> usize {
+        4 * self.far.len()
+            + self
+                .near
+                .iter()
+                .map(|(_, r)| 32 + 4 * r.len())
+                .sum::<usize>()
+    }
+}
+
+struct Cache {
+    columns: HashMap<usize, Column>,
+    bytes: usize,
+    form_factor_seconds: f64,
+}
+
+/// Columns computed on demand by an engine, cached within a byte budget.
+pub struct Columns<'a> {
+    mesh: &'a Mesh,
+    engine: &'a dyn Engine,
+    near: &'a NearField,
+    patch_area: Vec<f64>,
+    cache: Mutex<Cache>,
+    cache_limit: usize,
+}
+
+impl<'a> Columns<'a> {
+    /// A coupling over `mesh` whose columns come from `engine`, linking near pairs
+    /// element by element, caching up to `cache_limit` bytes of columns.
+    pub fn new(
+        mesh: &'a Mesh,
+        engine: &'a dyn Engine,
+        near: &'a NearField,
+        cache_limit: u64,
+    ) -> Self {
+        Self {
+            mesh,
+            engine,
+            near,
+            patch_area: mesh.patches.iter().map(|p| mesh.patch_area(p)).collect(),
+            cache: Mutex::new(Cache {
+                columns: HashMap::new(),
+                bytes: 0,
+                form_factor_seconds: 0.0,
+            }),
+            cache_limit: usize::try_from(cache_limit).unwrap_or(usize::MAX),
+        }
+    }
+
+    fn compute_column(&self, p: usize) -> Column {
+        let mut far = vec![0.0f32; self.mesh.elements.len()];
+        let receivers = &self.near.per_patch[p];
+        // The whole column first (a method may compute columns faster than pairs), then
+        // the near receivers are resolved element by element.
+        self.engine.column(p, &mut far);
+        if receivers.is_empty() {
+            return Column {
+                far,
+                near: Vec::new(),
+            };
+        }
+        for &e in receivers {
+            far[e as usize] = 0.0;
+        }
+        let sources = self.mesh.patches[p].elements.clone();
+        let near = receivers
+            .par_iter()
+            .map(|&e| {
+                let row = sources
+                    .clone()
+                    .map(|s| self.engine.element_pair(e as usize, s as usize) as f32)
+                    .collect();
+                (e, row)
+            })
+            .collect();
+        Column { far, near }
+    }
+
+    /// Runs `f` on column `p`, from the cache or computed (and cached while room remains).
+    fn with_column<R>(&self, p: usize, f: impl FnOnce(&Column) -> R) -> R {
+        let cached = self
+            .cache
+            .lock()
+            .ok()
+            .and_then(|mut c| c.columns.remove(&p));
+        let column = match cached {
+            Some(c) => c,
+            None => {
+                let started = Instant::now();
+                let c = self.compute_column(p);
+                if let Ok(mut cache) = self.cache.lock() {
+                    cache.form_factor_seconds += started.elapsed().as_secs_f64();
+                    let bytes = c.bytes();
+                    if cache.bytes + bytes > self.cache_limit {
+                        drop(cache);
+                        return f(&c);
+                    }
+                    cache.bytes += bytes;
+                }
+                c
+            }
+        };
+        let result = f(&column);
+        if let Ok(mut cache) = self.cache.lock() {
+            cache.columns.insert(p, column);
+        }
+        result
+    }
+
+    /// H_e for one element from patch means `bp` and element values `b`, by rows.
+    fn irradiance_at(&self, e: usize, bp: &[[f64; 3]], b: &[[f64; 3]]) -> [f64; 3] {
+        let mut row = vec![0.0f32; self.mesh.patches.len()];
+        self.engine.row(e, &mut row);
+        let mut h = [0.0; 3];
+        for (q, (f, m)) in row.iter().zip(bp).enumerate() {
+            if self.near.is_near(e, q) {
+                for s in self.mesh.patches[q].elements.clone() {
+                    let f = self.engine.element_pair(e, s as usize);
+                    for c in 0..3 {
+                        h[c] += f * b[s as usize][c];
+                    }
+                }
+            } else {
+                for c in 0..3 {
+                    h[c] += *f as f64 * m[c];
+                }
+            }
+        }
+        h
+    }
+}
+
+impl Coupling for Columns<'_> {
+    fn name(&self) -> &'static str {
+        "columns"
+    }
+
+    fn mesh(&self) -> &Mesh {
+        self.mesh
+    }
+
+    fn gather(&self, b: &[[f64; 3]]) -> Vec<[f64; 3]> {
+        let bp = patch_means(self.mesh, &self.patch_area, b);
+        (0..b.len())
+            .into_par_iter()
+            .map(|e| self.irradiance_at(e, &bp, b))
+            .collect()
+    }
+
+    fn gather_elements(&self, elements: &[u32], b: &[[f64; 3]]) -> Vec<[f64; 3]> {
+        let bp = patch_means(self.mesh, &self.patch_area, b);
+        elements
+            .par_iter()
+            .map(|&e| self.irradiance_at(e as usize, &bp, b))
+            .collect()
+    }
+
+    fn sources(&self) -> usize {
+        self.mesh.patches.len()
+    }
+
+    fn source_elements(&self, source: usize) -> Range<u32> {
+        self.mesh.patches[source].elements.clone()
+    }
+
+    fn shoot(&self, source: usize, shot: &[[f64; 3]], receive: &mut dyn FnMut(usize, [f64; 3])) {
+        let range = self.source_elements(source);
+        let mut mean = [0.0; 3];
+        for (s, u) in range.clone().zip(shot) {
+            let a = self.mesh.elements[s as usize].area / self.patch_area[source];
+            for c in 0..3 {
+                mean[c] += u[c] * a;
+            }
+        }
+        self.with_column(source, |column| {
+            for (e, &f) in column.far.iter().enumerate() {
+                if f != 0.0 {
+                    let f = f as f64;
+                    receive(e, mean.map(|m| f * m));
+                }
+            }
+            for (e, row) in &column.near {
+                let mut dh = [0.0; 3];
+                for (f, u) in row.iter().zip(shot) {
+                    for c in 0..3 {
+                        dh[c] += *f as f64 * u[c];
+                    }
+                }
+                receive(*e as usize, dh);
+            }
+        })
+    }
+
+    fn memory_bytes(&self) -> u64 {
+        self.cache.lock().map_or(0, |c| c.bytes as u64)
+    }
+
+    fn form_factor_seconds(&self) -> f64 {
+        self.cache.lock().map_or(0.0, |c| c.form_factor_seconds)
+    }
+}

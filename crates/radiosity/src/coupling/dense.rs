@@ -1,0 +1,269 @@
+//! The dense element × patch coupling, computed up front.
+//!
+//! Unknowns live on two levels (substructuring, Cohen, Greenberg, Immel & Brock 1986):
+//! elements gather from patches at the patch's area-weighted mean radiosity
+//! B̄_q = Σ_{e∈q} A_e B_e / A_q, except that near pairs ([`NearField`]) link element to
+//! element:
+//!
+//!   H_e = Σ_{far q} F_{e→q} B̄_q + Σ_{near e'} F_{e→e'} B_e'.
+//!
+//! The far factors are a dense row-major matrix of f32 (zero where the pair is near), the
+//! near links a sparse list per element.
+
+use super::{patch_means, Coupling, NearField};
+use crate::formfactor::Engine;
+use crate::mesh::Mesh;
+use crate::progress::Progress;
+use rayon::prelude::*;
+use std::ops::Range;
+use std::time::Instant;
+
+/// Every element × patch form factor, plus near-field element links.
+pub struct Dense<'a> {
+    mesh: &'a Mesh,
+    patches: usize,
+    /// F_{e→p}, row-major, zero for near pairs.
+    data: Vec<f32>,
+    /// Near-field links of each element: (source element, F_{e→e'}), sorted by source.
+    near: Vec<Vec<(u32, f32)>>,
+    /// Receivers with near links to each patch (sorted).
+    near_receivers: Vec<Vec<u32>>,
+    patch_area: Vec<f64>,
+    form_factor_seconds: f64,
+}
+
+impl<'a> Dense<'a> {
+    /// Bytes the far matrix of a mesh needs (the near links add a little).
+    pub fn bytes_for(elements: usize, patches: usize) -> u128 {
+        elements as u128 * patches as u128 * 4
+    }
+
+    /// Computes every row in parallel with `engine`, linking near pairs element by element.
+    pub fn compute(
+        mesh: &'a Mesh,
+        engine: &dyn Engine,
+        near_field: &NearField,
+        progress: &dyn Progress,
+    ) -> Self {
+        let started = Instant::now();
+        let (n, m) = (mesh.elements.len(), mesh.patches.len());
+        let mut data = vec![0.0f32; n * m];
+        progress.start("form factors", n as u64);
+        let near: Vec<Vec<(u32, f32)>> = data
+            .par_chunks_mut(m.max(1))
+            .enumerate()
+            .map(|(e, row)| {
+                let mut links = Vec::new();
+                // The whole row first (a method may compute rows faster than pairs), then
+                // the near patches are resolved into element links.
+                engine.row(e, row);
+                for &p in &near_field.per_element[e] {
+                    row[p as usize] = 0.0;
+                    for s in mesh.patches[p as usize].elements.clone() {
+                        let v = engine.element_pair(e, s as usize);
+                        if v > 0.0 {
+                            links.push((s, v as f32));
+                        }
+                    }
+                }
+                links.sort_unstable_by_key(|l| l.0);
+                progress.inc(1);
+                links
+            })
+            .collect();
+        progress.finish();
+        Self {
+            mesh,
+            patches: m,
+            data,
+            near,
+            near_receivers: near_field.per_patch.clone(),
+            patch_area: mesh.patches.iter().map(|p| mesh.patch_area(p)).collect(),
+            form_factor_seconds: started.elapsed().as_secs_f64(),
+        }
+    }
+
+    /// Far factors F_{e→p} of element `e` (zero where near).
+    pub fn row(&self, e: usize) -> &[f32] {
+        &self.data[e * self.patches..(e + 1) * self.patches]
+    }
+
+    /// Near-field links of element `e`: (source element, F_{e→e'}).
+    pub fn near_links(&self, e: usize) -> &[(u32, f32)] {
+        &self.near[e]
+    }
+
+    /// Areas of the patches, m².
+    pub fn patch_areas(&self) -> &[f64] {
+        &self.patch_area
+    }
+
+    /// F_{e→p} with the near-field links to `p`'s elements summed back into it.
+    pub fn full_row(&self, e: usize) -> Vec<f64> {
+        let mut row: Vec<f64> = self.row(e).iter().map(|&f| f as f64).collect();
+        for &(s, f) in &self.near[e] {
+            row[self.mesh.elements[s as usize].patch.0 as usize] += f as f64;
+        }
+        row
+    }
+
+    /// H_e for one element given patch means `bp` and element values `b`.
+    fn irradiance_at(&self, e: usize, bp: &[[f64; 3]], b: &[[f64; 3]]) -> [f64; 3] {
+        let mut h = [0.0; 3];
+        for (f, q) in self.row(e).iter().zip(bp) {
+            let f = *f as f64;
+            h[0] += f * q[0];
+            h[1] += f * q[1];
+            h[2] += f * q[2];
+        }
+        for &(s, f) in &self.near[e] {
+            for c in 0..3 {
+                h[c] += f as f64 * b[s as usize][c];
+            }
+        }
+        h
+    }
+
+    /// Area-weighted means of per-element values over each patch.
+    pub fn patch_means(&self, b: &[[f64; 3]]) -> Vec<[f64; 3]> {
+        patch_means(self.mesh, &self.patch_area, b)
+    }
+
+    /// The patch-level system with near links summed back to their patches,
+    /// M_pq = Σ_{e∈p} (A_e / A_p) ρ_e F_{e→q}, per channel, row-major.
+    pub fn patch_matrix(&self) -> [Vec<f64>; 3] {
+        let m = self.patches;
+        let rows: Vec<[Vec<f64>; 3]> = self
+            .mesh
+            .patches
+            .par_iter()
+            .zip(&self.patch_area)
+            .map(|(patch, area)| {
+                let mut row: [Vec<f64>; 3] = std::array::from_fn(|_| vec![0.0; m]);
+                for e in patch.elements.clone() {
+                    let el = &self.mesh.elements[e as usize];
+                    let w = el.area / area;
+                    let rho = self.mesh.reflectance(el);
+                    let full = self.full_row(e as usize);
+                    for c in 0..3 {
+                        let scale = w * rho[c];
+                        for (dst, f) in row[c].iter_mut().zip(&full) {
+                            *dst += scale * f;
+                        }
+                    }
+                }
+                row
+            })
+            .collect();
+        let mut matrix: [Vec<f64>; 3] = std::array::from_fn(|_| Vec::with_capacity(m * m));
+        for row in rows {
+            for c in 0..3 {
+                matrix[c].extend_from_slice(&row[c]);
+            }
+        }
+        matrix
+    }
+
+    /// Σ_q F_{e→q} v_q per element (full rows, near links summed back): irradiance from
+    /// patch-level values `v` spread uniformly over each patch.
+    pub fn gather_patch_values(&self, v: &[[f64; 3]]) -> Vec<[f64; 3]> {
+        (0..self.mesh.elements.len())
+            .into_par_iter()
+            .map(|e| {
+                let full = self.full_row(e);
+                std::array::from_fn(|c| full.iter().zip(v).map(|(f, d)| f * d[c]).sum())
+            })
+            .collect()
+    }
+}
+
+impl Coupling for Dense<'_> {
+    fn name(&self) -> &'static str {
+        "dense"
+    }
+
+    fn mesh(&self) -> &Mesh {
+        self.mesh
+    }
+
+    fn gather(&self, b: &[[f64; 3]]) -> Vec<[f64; 3]> {
+        let bp = self.patch_means(b);
+        (0..b.len())
+            .into_par_iter()
+            .map(|e| self.irradiance_at(e, &bp, b))
+            .collect()
+    }
+
+    fn gather_elements(&self, elements: &[u32], b: &[[f64; 3]]) -> Vec<[f64; 3]> {
+        let bp = self.patch_means(b);
+        elements
+            .par_iter()
+            .map(|&e| self.irradiance_at(e as usize, &bp, b))
+            .collect()
+    }
+
+    /// In place, element by element, with the patch means kept current as elements change.
+    fn sweep(&self, b: &mut [[f64; 3]], update: &mut dyn FnMut(usize, [f64; 3]) -> [f64; 3]) {
+        let mut bp = self.patch_means(b);
+        for (e, el) in self.mesh.elements.iter().enumerate() {
+            let h = self.irradiance_at(e, &bp, b);
+            let new = update(e, h);
+            let q = el.patch.0 as usize;
+            for c in 0..3 {
+                bp[q][c] += (new[c] - b[e][c]) * el.area / self.patch_area[q];
+            }
+            b[e] = new;
+        }
+    }
+
+    fn sources(&self) -> usize {
+        self.patches
+    }
+
+    fn source_elements(&self, source: usize) -> Range<u32> {
+        self.mesh.patches[source].elements.clone()
+    }
+
+    /// Column `source` of the far matrix at the shot's mean, and the near receivers' links
+    /// to the source's elements at each element's own shot.
+    fn shoot(&self, source: usize, shot: &[[f64; 3]], receive: &mut dyn FnMut(usize, [f64; 3])) {
+        let range = self.source_elements(source);
+        let mut mean = [0.0; 3];
+        for (s, u) in range.clone().zip(shot) {
+            let a = self.mesh.elements[s as usize].area / self.patch_area[source];
+            for c in 0..3 {
+                mean[c] += u[c] * a;
+            }
+        }
+        for e in 0..self.mesh.elements.len() {
+            let f = self.data[e * self.patches + source] as f64;
+            if f != 0.0 {
+                receive(e, mean.map(|m| f * m));
+            }
+        }
+        for &e in &self.near_receivers[source] {
+            let links = &self.near[e as usize];
+            let start = links.partition_point(|l| l.0 < range.start);
+            let mut dh = [0.0; 3];
+            for &(s, f) in links[start..].iter().take_while(|l| l.0 < range.end) {
+                let u = shot[(s - range.start) as usize];
+                for c in 0..3 {
+                    dh[c] += f as f64 * u[c];
+                }
+            }
+            receive(e as usize, dh);
+        }
+    }
+
+    fn memory_bytes(&self) -> u64 {
+        (self.data.len() * 4 + self.near.iter().map(|l| 24 + l.len() * 8).sum::<usize>()) as u64
+    }
+
+    fn form_factor_seconds(&self) -> f64 {
+        self.form_factor_seconds
+    }
+
+    fn as_dense(&self) -> Option<&Dense<'_>> {
+        Some(self)
+    }
+}

@@ -1,0 +1,244 @@
+//! Form-factor kernels: geometry in, one number out.
+//!
+//! A kernel computes F from a receiver (a polygon, or a point with a normal) to a source
+//! polygon, with visibility answered by a [`Visibility`] query:
+//!
+//!   F_{R→S} = (1/A_R) ∫_{A_R} ∫_{A_S} cosθ_x cosθ_y V(x, y) / (π r²) dA_y dA_x.
+//!
+//! A kernel never sees a mesh index: mesh-level engines (rows, columns, hemi-cubes over a
+//! mesh, [`super::engine`]) and the hierarchical coupling build receivers and sources from
+//! whatever pieces of geometry they link, and call the kernel. Sources are prepared once
+//! ([`Kernel::source`]: probe points and penumbra sub-areas for visibility, sub-area samples)
+//! because one source serves many receivers.
+
+use super::analytic_point::point_to_polygon;
+use super::quadrature::element_points;
+use super::FormFactorMethod;
+use crate::accel::Visibility;
+use crate::geometry::{newell, sub_areas, subdivide};
+use glam::DVec3;
+
+/// A receiving geometry: a polygon with quadrature points, or a single point.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Receiver {
+    /// Corners of the receiving polygon, counter-clockwise seen from its front; empty for a
+    /// point receiver.
+    pub vertices: Vec<DVec3>,
+    /// Unit normal of the receiving side.
+    pub normal: DVec3,
+    /// Area centroid (the point itself for a point receiver), m.
+    pub centre: DVec3,
+    /// Quadrature points over the receiver, weights summing to 1.
+    pub points: Vec<(DVec3, f64)>,
+    /// The points visibility rays leave from, weights summing to 1.
+    pub visibility_points: Vec<(DVec3, f64)>,
+}
+
+impl Receiver {
+    /// A differential area at `x` with unit normal `normal`.
+    pub fn point(x: DVec3, normal: DVec3) -> Self {
+        Self {
+            vertices: Vec::new(),
+            normal,
+            centre: x,
+            points: vec![(x, 1.0)],
+            visibility_points: vec![(x, 1.0)],
+        }
+    }
+
+    /// A convex triangle or quad (or fan of triangles) integrated by an `order × order` Gauss
+    /// rule ([`element_points`]); visibility is probed from the same points up to order 2,
+    /// else from a 2 × 2 subset (Wallace, Elmquist & Haines 1989 cast few visibility rays).
+    pub fn polygon(vertices: Vec<DVec3>, order: usize) -> Self {
+        let (normal, _) = newell(&vertices);
+        let centre = polygon_centroid(&vertices);
+        let mut points = Vec::new();
+        element_points(&vertices, centre, order.max(1), &mut points);
+        let visibility_points = if order <= 2 {
+            points.clone()
+        } else {
+            let mut vis = Vec::with_capacity(4);
+            element_points(&vertices, centre, 2, &mut vis);
+            vis
+        };
+        Self {
+            vertices,
+            normal,
+            centre,
+            points,
+            visibility_points,
+        }
+    }
+
+    /// Whether this is a differential area rather than a polygon.
+    pub fn is_point(&self) -> bool {
+        self.vertices.is_empty()
+    }
+}
+
+/// A source polygon prepared for kernels: its plane, probe points for the visibility test,
+/// and penumbra sub-areas (with centroids) for partially visible pairs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SourcePolygon {
+    /// Corners, counter-clockwise seen from the emitting side.
+    pub vertices: Vec<DVec3>,
+    /// Unit normal of the emitting side.
+    pub normal: DVec3,
+    /// Area centroid, m.
+    pub centre: DVec3,
+    /// Largest distance from the centre to a corner, m.
+    pub radius: f64,
+    /// Area, m².
+    pub area: f64,
+    /// Points visibility rays aim at.
+    pub probes: Vec<DVec3>,
+    /// Penumbra sub-areas: where probes disagree, visibility is weighted by the exact form
+    /// factors of these pieces.
+    pub sub_areas: Vec<Vec<DVec3>>,
+    /// Centroids of `sub_areas`.
+    pub sub_points: Vec<DVec3>,
+    /// Areas of `sub_areas`, m².
+    pub sub_area_sizes: Vec<f64>,
+}
+
+/// How a source is divided into probes and penumbra sub-areas.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Division {
+    /// [`subdivide`]: k² similar pieces per triangle, k × k on quads; probes at the pieces'
+    /// lattice centres (vertex means).
+    Lattice,
+    /// [`sub_areas`]: about k² pieces of similar size and shape whatever the polygon; probes
+    /// at the pieces' area centroids.
+    SubAreas,
+}
+
+impl SourcePolygon {
+    /// Prepares `vertices` with about `probe²` probe points and `penumbra²` penumbra
+    /// sub-areas, divided by `division`.
+    pub fn new(vertices: &[DVec3], probe: usize, penumbra: usize, division: Division) -> Self {
+        let divide = |k: usize| match division {
+            Division::Lattice => subdivide(vertices, k.max(1)),
+            Division::SubAreas => sub_areas(vertices, k.max(1)),
+        };
+        let probes = divide(probe)
+            .iter()
+            .map(|p| match division {
+                Division::Lattice => p.iter().copied().sum::<DVec3>() / p.len() as f64,
+                Division::SubAreas => polygon_centroid(p),
+            })
+            .collect();
+        let sub_areas = divide(penumbra);
+        let sub_points = sub_areas.iter().map(|p| polygon_centroid(p)).collect();
+        let sub_area_sizes = sub_areas.iter().map(|p| newell(p).1).collect();
+        let (normal, area) = newell(vertices);
+        let centre = polygon_centroid(vertices);
+        let radius = vertices
+            .iter()
+            .map(|v| v.distance(centre))
+            .fold(0.0, f64::max);
+        Self {
+            vertices: vertices.to_vec(),
+            normal,
+            centre,
+            radius,
+            area,
+            probes,
+            sub_areas,
+            sub_points,
+            sub_area_sizes,
+        }
+    }
+}
+
+/// Area centroid of a planar convex polygon (the vertex mean if it has no area).
+pub fn polygon_centroid(v: &[DVec3]) -> DVec3 {
+    let (mut sum, mut total) = (DVec3::ZERO, 0.0);
+    for w in v[1..].windows(2) {
+        let a = (w[0] - v[0]).cross(w[1] - v[0]).length();
+        sum += a * (v[0] + w[0] + w[1]) / 3.0;
+        total += a;
+    }
+    if total > 0.0 {
+        sum / total
+    } else {
+        v.iter().copied().sum::<DVec3>() / v.len() as f64
+    }
+}
+
+/// A form-factor method as a kernel on geometry.
+pub trait Kernel: Sync + Send {
+    /// The method this kernel implements.
+    fn method(&self) -> FormFactorMethod;
+
+    /// Prepares a convex source polygon (counter-clockwise seen from its emitting side).
+    fn source(&self, vertices: &[DVec3]) -> SourcePolygon;
+
+    /// The Gauss order per axis at which a receiving polygon of diameter `size` (m) is
+    /// integrated; `clearance` gives its distance (m) to the nearest other surface that can
+    /// exchange light with it (computed only if the kernel asks). Default 1: the centre.
+    fn receiver_order(&self, _size: f64, _clearance: &dyn Fn() -> f64) -> usize {
+        1
+    }
+
+    /// F from `receiver` to `source`, with visibility from `visibility`. Dimensionless, ≥ 0;
+    /// 0 when either faces away from the other (surfaces are one-sided).
+    fn form_factor(
+        &self,
+        receiver: &Receiver,
+        source: &SourcePolygon,
+        visibility: &Visibility,
+    ) -> f64;
+}
+
+/// The fraction of `source` visible from the receiver points `receivers` (weights summing
+/// to 1, unit normal `n`), from 0 to 1.
+///
+/// Probe stage (after Wallace, Elmquist & Haines 1989): with one receiver point, or with
+/// `all_probes`, every point casts a ray to every probe; otherwise each casts one, rotating
+/// through the probes. All visible gives exactly 1, none exactly 0. Otherwise the fraction is
+/// Σ_x w_x Σ_k F_{x→ΔA_k} V(x, y_k) / Σ_x w_x Σ_k F_{x→ΔA_k} over the penumbra sub-areas ΔA_k
+/// with centroids y_k, F the exact point-to-polygon factor.
+pub fn visible_fraction(
+    vis: &Visibility,
+    receivers: &[(DVec3, f64)],
+    n: DVec3,
+    s: &SourcePolygon,
+    all_probes: bool,
+) -> f64 {
+    let (mut visible, mut total) = (0usize, 0usize);
+    let per_point = if receivers.len() == 1 || all_probes {
+        s.probes.len()
+    } else {
+        1
+    };
+    for (i, (x, _)) in receivers.iter().enumerate() {
+        for k in 0..per_point {
+            let y = s.probes[(i + k) % s.probes.len()];
+            total += 1;
+            visible += usize::from(vis.visible(*x, n, y, s.normal));
+        }
+    }
+    if visible == total {
+        return 1.0;
+    }
+    if visible == 0 {
+        return 0.0;
+    }
+    let (mut seen, mut all) = (0.0, 0.0);
+    for (x, w) in receivers {
+        for (sub, y) in s.sub_areas.iter().zip(&s.sub_points) {
+            let f = w * point_to_polygon(*x, n, sub, s.normal);
+            if f > 0.0 {
+                all += f;
+                if vis.visible(*x, n, *y, s.normal) {
+                    seen += f;
+                }
+            }
+        }
+    }
+    if all > 0.0 {
+        seen / all
+    } else {
+        visible as f64 / total as f64
+    }
+}
