@@ -20,8 +20,10 @@ use std::f64::consts::PI;
 /// Shading mode.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Shading {
+    /// Each element in its own radiosity.
     Flat,
     #[default]
+    /// Gouraud: vertex values interpolated across each element.
     Smooth,
 }
 

@@ -21,6 +21,8 @@
 //! Units: lengths in metres, emitted radiance L_e in W·m⁻²·sr⁻¹, radiosity, exitance and
 //! irradiance in W·m⁻², power in W.
 
+#![warn(missing_docs)]
+
 pub mod accel;
 pub mod cornell;
 pub mod coupling;

@@ -13,9 +13,11 @@ use serde::{Deserialize, Serialize};
 /// One object's line in the report.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ObjectReport {
+    /// Object name.
     pub name: String,
     /// m²
     pub area: f64,
+    /// Area-weighted mean reflectance ρ per channel.
     pub reflectance: [f64; 3],
     /// W·m⁻²
     pub emitted_exitance: [f64; 3],
@@ -38,34 +40,49 @@ pub struct Totals {
     pub escaped_power: [f64; 3],
     /// W: power still waiting to be shot (progressive solver; 0 otherwise).
     pub unshot_power: [f64; 3],
+    /// Elements in the mesh.
     pub elements: usize,
+    /// Patches in the mesh.
     pub patches: usize,
+    /// The solver.
     pub solver: String,
+    /// The form-factor method.
     pub form_factor: String,
     /// Iterations, shots (progressive) or 1 (direct).
     pub iterations: usize,
     /// Relative residual (matrix solvers) or unshot power fraction (progressive).
     pub residual: f64,
+    /// Wall-clock seconds of the solve.
     pub seconds: f64,
+    /// Of which computing form factors, s.
     pub form_factor_seconds: f64,
 }
 
 /// The whole report, as written by `radiosity solve --report`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Report {
+    /// The scene's name.
     pub scene: String,
+    /// The units of every number.
     pub units: Units,
+    /// Per object.
     pub objects: Vec<ObjectReport>,
+    /// Whole-scene totals.
     pub totals: Totals,
 }
 
 /// The units of the report's quantities, spelled out for readers of the JSON.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Units {
+    /// Unit of areas.
     pub area: String,
+    /// Unit of radiosity.
     pub radiosity: String,
+    /// Unit of irradiance.
     pub irradiance: String,
+    /// Unit of emitted exitance.
     pub emitted_exitance: String,
+    /// Unit of power.
     pub power: String,
 }
 

@@ -59,7 +59,9 @@ impl Material {
 /// Where a surface came from, for error messages.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Origin {
+    /// The file, as the user named it.
     pub file: Option<String>,
+    /// The 1-based line.
     pub line: Option<usize>,
 }
 
@@ -70,16 +72,22 @@ pub struct Surface {
     pub object: String,
     /// Surface group (OBJ `g`), informational.
     pub group: String,
+    /// Its material.
     pub material: MaterialId,
+    /// Its outline, counter-clockwise seen from the lit side, m.
     pub polygon: Polygon,
+    /// Where it was defined.
     pub origin: Origin,
 }
 
 /// A perspective pinhole camera.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Camera {
+    /// Eye position, m.
     pub eye: DVec3,
+    /// Point looked at, m.
     pub target: DVec3,
+    /// Up direction.
     pub up: DVec3,
     /// Vertical field of view in degrees (also horizontal for square images).
     pub fov_deg: f64,
@@ -128,6 +136,7 @@ pub struct Scene {
 }
 
 impl Scene {
+    /// A surface's material.
     pub fn material(&self, surface: &Surface) -> &Material {
         &self.materials[surface.material.0 as usize]
     }

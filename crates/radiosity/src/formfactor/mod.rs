@@ -72,6 +72,7 @@ impl FormFactorMethod {
         FormFactorMethod::MonteCarlo,
     ];
 
+    /// The method's name on the command line and in scene files.
     pub fn name(self) -> &'static str {
         match self {
             FormFactorMethod::AnalyticPoint => "analytic-point",

@@ -47,6 +47,7 @@ const BATCH: usize = 1 << 14;
 pub struct MonteCarloParams {
     /// Rays per element.
     pub rays: usize,
+    /// Seed of the random streams.
     pub seed: u64,
 }
 
@@ -378,10 +379,12 @@ pub struct MonteCarlo<'a> {
 }
 
 impl<'a> MonteCarlo<'a> {
+    /// The engine over `mesh` with the default rays and seed.
     pub fn new(mesh: &'a Mesh, visibility: &'a Visibility) -> Self {
         Self::with_params(mesh, visibility, MonteCarloParams::default())
     }
 
+    /// The engine over `mesh` with the given rays and seed.
     pub fn with_params(
         mesh: &'a Mesh,
         visibility: &'a Visibility,

@@ -31,7 +31,12 @@ use std::time::Instant;
 #[derive(Debug, Clone, PartialEq)]
 pub enum Source {
     /// A differential area at `point` with unit `normal`.
-    Point { point: DVec3, normal: DVec3 },
+    Point {
+        /// Position, m.
+        point: DVec3,
+        /// Unit normal.
+        normal: DVec3,
+    },
     /// A planar convex polygon, counter-clockwise seen from its front.
     Polygon(Vec<DVec3>),
 }
@@ -42,7 +47,9 @@ pub enum Source {
 /// geometry; the methods assume valid input.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PairProblem {
+    /// The receiving side (F is from it).
     pub from: Source,
+    /// The source polygon, counter-clockwise seen from its front.
     pub to: Vec<DVec3>,
     /// Opaque convex polygons that may block the view (both sides block).
     pub occluders: Vec<Vec<DVec3>>,
@@ -51,11 +58,14 @@ pub struct PairProblem {
 /// A form-factor value, with its standard error where the method is a random estimate.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Estimate {
+    /// The form factor (dimensionless).
     pub value: f64,
+    /// Its standard error, for random estimates.
     pub stderr: Option<f64>,
 }
 
 impl Estimate {
+    /// A deterministic value (no standard error).
     pub fn exact(value: f64) -> Self {
         Self {
             value,
@@ -68,11 +78,19 @@ impl Estimate {
 #[derive(Debug, thiserror::Error)]
 pub enum PairError {
     #[error("not valid JSON: {0}")]
+    /// The file is not valid JSON.
     Json(#[from] serde_json::Error),
     #[error("{0}")]
+    /// The JSON does not describe a problem.
     Format(String),
     #[error("{what}: {source}")]
-    Geometry { what: String, source: GeometryError },
+    /// A polygon of the problem is not usable.
+    Geometry {
+        /// What the value is.
+        what: String,
+        /// The underlying error.
+        source: GeometryError,
+    },
 }
 
 impl PairProblem {
@@ -313,6 +331,7 @@ pub struct PairSettings {
 /// A method's answer to a pair problem.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PairResult {
+    /// The method.
     pub method: FormFactorMethod,
     /// F_{from→to}.
     pub from_to: Estimate,

@@ -21,6 +21,7 @@ const REFERENCE: &str = include_str!("../../tests/reference/formfactors.json");
 pub struct ReferenceCase {
     /// Catalog number and parameters, e.g. "C-11 a=1 b=1 c=1".
     pub name: String,
+    /// The configuration.
     pub problem: PairProblem,
     /// F_{1→2}.
     pub f12: f64,
@@ -99,6 +100,7 @@ pub fn reference_cases() -> Vec<ReferenceCase> {
 /// One method's line of the table.
 #[derive(Debug, Clone)]
 pub struct TableRow {
+    /// The method.
     pub method: FormFactorMethod,
     /// Largest |computed − exact| over every reference value.
     pub max_error: f64,

@@ -19,17 +19,34 @@ use glam::DVec3;
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum GeometryError {
     #[error("polygon has {0} distinct vertices; at least 3 are needed")]
+    /// Fewer than three distinct vertices.
     TooFewVertices(usize),
     #[error("polygon has a non-finite coordinate (NaN or infinity)")]
+    /// A coordinate is NaN or infinite.
     NonFinite,
     #[error("polygon is degenerate (area {area:.3e} m², collinear or repeated vertices)")]
-    Degenerate { area: f64 },
+    /// Zero (or nearly zero) area.
+    Degenerate {
+        /// Area, m².
+        area: f64,
+    },
     #[error("polygon is not planar: a vertex lies {deviation:.3e} m off its plane")]
-    NonPlanar { deviation: f64 },
+    /// Not planar.
+    NonPlanar {
+        /// Largest distance of a vertex from the plane, m.
+        deviation: f64,
+    },
     #[error("polygon is not convex")]
+    /// The polygon is not convex.
     NonConvex,
     #[error("polygon coordinate {value:e} m is out of range (|x| must stay below {limit:e} m)")]
-    OutOfRange { value: f64, limit: f64 },
+    /// A coordinate beyond [`COORDINATE_LIMIT`].
+    OutOfRange {
+        /// The value given.
+        value: f64,
+        /// The largest accepted.
+        limit: f64,
+    },
 }
 
 /// Coordinates beyond this (metres) are rejected as absurd: 1e6 m is a city-sized scene.

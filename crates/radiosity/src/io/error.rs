@@ -13,11 +13,14 @@ use std::fmt;
 /// A place in an input file: the file as the user named it, and the 1-based line if known.
 #[derive(Debug, Clone, PartialEq, Eq, Default)]
 pub struct Location {
+    /// The file, as the user named it.
     pub file: String,
+    /// The 1-based line, if known.
     pub line: Option<usize>,
 }
 
 impl Location {
+    /// A location in `file`, at `line` if known.
     pub fn new(file: impl Into<String>, line: Option<usize>) -> Self {
         Self {
             file: file.into(),
@@ -51,86 +54,136 @@ pub enum SceneError {
     /// The file could not be opened or read (missing, unreadable, not UTF-8).
     #[error("{file}: cannot read: {source}")]
     Read {
+        /// The file, as the user named it.
         file: String,
         #[source]
+        /// The underlying error.
         source: std::io::Error,
     },
     /// The file could not be written.
     #[error("{file}: cannot write: {source}")]
     Write {
+        /// The file, as the user named it.
         file: String,
         #[source]
+        /// The underlying error.
         source: std::io::Error,
     },
     /// A line that does not parse: a value that is not a number, the wrong number of values,
     /// a malformed face token.
     #[error("{at}: {message}")]
-    Syntax { at: Location, message: String },
+    Syntax {
+        /// Where in the input.
+        at: Location,
+        /// What is wrong.
+        message: String,
+    },
     /// A face refers to a vertex (or texture coordinate, or normal) that does not exist.
     /// `index` is as written in the file (negative for relative indices).
     #[error("{at}: face refers to {what} {index}, file has {count}")]
     IndexOutOfRange {
+        /// Where in the input.
         at: Location,
+        /// What the value is.
         what: &'static str,
+        /// The index as written.
         index: i64,
+        /// How many there are.
         count: usize,
     },
     /// A vertex coordinate is NaN or infinite.
     #[error("{at}: vertex coordinate {value} is not finite")]
-    NonFiniteCoordinate { at: Location, value: String },
+    NonFiniteCoordinate {
+        /// Where in the input.
+        at: Location,
+        /// The value given.
+        value: String,
+    },
     /// A face is not a usable polygon (degenerate, too few vertices, absurd coordinates,
     /// non-planar with more than four vertices).
     #[error("{at}: object '{object}': {source}")]
     Geometry {
+        /// Where in the input.
         at: Location,
+        /// The object it belongs to.
         object: String,
         #[source]
+        /// The underlying error.
         source: GeometryError,
     },
     /// An OBJ `mtllib` names a file that cannot be read.
     #[error("{at}: cannot read material library '{library}': {source}")]
     MissingMaterialLibrary {
+        /// Where in the input.
         at: Location,
+        /// The material library named.
         library: String,
         #[source]
+        /// The underlying error.
         source: std::io::Error,
     },
     /// A surface names a material that is not defined.
     #[error("{at}: object '{object}': material '{material}' is not defined")]
     UnknownMaterial {
+        /// Where in the input.
         at: Location,
+        /// The object it belongs to.
         object: String,
+        /// The material.
         material: String,
     },
     /// An OBJ face comes before any `usemtl`.
     #[error("{at}: object '{object}': face has no material (no 'usemtl' before it)")]
-    NoMaterial { at: Location, object: String },
+    NoMaterial {
+        /// Where in the input.
+        at: Location,
+        /// The object it belongs to.
+        object: String,
+    },
     /// A material with unphysical or inconsistent values (reflectance outside [0, 1),
     /// negative emission, defined twice).
     #[error("{at}: material '{material}': {problem}")]
     Material {
+        /// Where in the input.
         at: Location,
+        /// The material.
         material: String,
+        /// What is wrong.
         problem: String,
     },
     /// A JSON scene file that is not valid JSON or does not match the format; `line` and
     /// `column` are 1-based, as serde_json reports them.
     #[error("{file}: line {line}, column {column}: {message}")]
     Json {
+        /// The file, as the user named it.
         file: String,
+        /// The 1-based line, if known.
         line: usize,
+        /// The 1-based column.
         column: usize,
+        /// What is wrong.
         message: String,
     },
     /// A value that parses but makes no sense (a camera looking nowhere, a zero image size).
     #[error("{at}: {message}")]
-    Invalid { at: Location, message: String },
+    Invalid {
+        /// Where in the input.
+        at: Location,
+        /// What is wrong.
+        message: String,
+    },
     /// The file extension is not one we can load.
     #[error("{file}: unknown scene format (expected a .obj or .json file)")]
-    UnknownFormat { file: String },
+    UnknownFormat {
+        /// The file, as the user named it.
+        file: String,
+    },
     /// The input defines no surfaces at all.
     #[error("{file}: scene has no surfaces")]
-    Empty { file: String },
+    Empty {
+        /// The file, as the user named it.
+        file: String,
+    },
 }
 
 #[cfg(test)]

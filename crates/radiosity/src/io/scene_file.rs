@@ -98,7 +98,9 @@ pub struct SceneSettings {
 /// A scene together with the settings stored in its file.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LoadedScene {
+    /// The scene.
     pub scene: Scene,
+    /// The settings stored in the file.
     pub settings: SceneSettings,
 }
 

@@ -17,13 +17,21 @@ pub const FORMAT_VERSION: u32 = 1;
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SolutionFile {
+    /// The format's name, for recognising the file.
     pub format: String,
+    /// The format version ([`FORMAT_VERSION`]).
     pub version: u32,
+    /// The scene's name.
     pub scene: String,
+    /// The scene's camera, if it had one.
     pub camera: Option<StoredCamera>,
+    /// Object names.
     pub objects: Vec<String>,
+    /// Per-surface material data.
     pub surfaces: Vec<SurfaceData>,
+    /// Mesh vertices, m.
     pub vertices: Vec<[f64; 3]>,
+    /// The elements.
     pub elements: Vec<Element>,
     /// W·m⁻² per element.
     pub radiosity: Vec<[f64; 3]>,
@@ -37,9 +45,13 @@ pub struct SolutionFile {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct StoredCamera {
+    /// Eye position, m.
     pub eye: [f64; 3],
+    /// Point looked at, m.
     pub target: [f64; 3],
+    /// Up direction.
     pub up: [f64; 3],
+    /// Vertical field of view, degrees.
     pub fov_deg: f64,
 }
 
@@ -69,17 +81,29 @@ impl From<StoredCamera> for Camera {
 #[derive(Debug, thiserror::Error)]
 pub enum SolutionFileError {
     #[error("{path}: {source}")]
+    /// The file could not be read or written.
     Io {
+        /// The file.
         path: PathBuf,
+        /// The underlying error.
         source: std::io::Error,
     },
     #[error("{path}: not a radiosity solution file: {source}")]
+    /// The file is not a solution file.
     Parse {
+        /// The file.
         path: PathBuf,
+        /// The underlying error.
         source: serde_json::Error,
     },
     #[error("{path}: {message}")]
-    Invalid { path: PathBuf, message: String },
+    /// The file is inconsistent.
+    Invalid {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
 }
 
 impl SolutionFile {
@@ -100,6 +124,7 @@ impl SolutionFile {
         }
     }
 
+    /// The mesh vertices, m.
     pub fn vertices(&self) -> Vec<DVec3> {
         self.vertices
             .iter()

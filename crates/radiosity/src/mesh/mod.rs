@@ -59,27 +59,41 @@ impl Default for MeshOptions {
 #[derive(Debug, thiserror::Error)]
 pub enum MeshError {
     #[error("element size must be a positive finite length in metres, got {0}")]
+    /// The element size is not a positive length.
     BadElementSize(f64),
     #[error("element count must be at least 1, got {0}")]
+    /// The element count is zero.
     BadElementCount(usize),
     #[error("patch subdivision must be between 1 and 64, got {0}")]
+    /// The patch subdivision is out of range.
     BadPatchSubdivision(u32),
     #[error(
         "meshing would create about {estimate} elements (limit {limit}); use a larger element size"
     )]
-    TooManyElements { estimate: usize, limit: usize },
+    /// Meshing would exceed the element limit.
+    TooManyElements {
+        /// The estimate.
+        estimate: usize,
+        /// The largest accepted.
+        limit: usize,
+    },
     #[error("the scene has no surfaces")]
+    /// Nothing to mesh.
     EmptyScene,
 }
 
 /// A receiving element: a small convex polygon of one surface.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Element {
+    /// The (split) surface it belongs to, an index into [`Mesh::surfaces`].
     pub surface: u32,
+    /// The patch it belongs to.
     pub patch: PatchId,
     /// Indices into [`Mesh::vertices`], counter-clockwise seen from the front (3 or 4).
     pub corners: Vec<u32>,
+    /// Area centroid, m.
     pub centre: DVec3,
+    /// Unit normal of the front side.
     pub normal: DVec3,
     /// Area in m².
     pub area: f64,
@@ -95,7 +109,9 @@ pub struct Element {
 /// A shooting patch: a convex polygon made of whole elements of one surface.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Patch {
+    /// The (split) surface it belongs to, an index into [`Mesh::surfaces`].
     pub surface: u32,
+    /// Its outline.
     pub polygon: Polygon,
     /// The elements making up this patch (contiguous).
     pub elements: Range<u32>,
@@ -118,9 +134,13 @@ pub struct SurfaceData {
 /// The meshed scene: vertices, elements, patches and per-surface material data.
 #[derive(Debug, Clone)]
 pub struct Mesh {
+    /// Vertices shared by the elements of a surface, m.
     pub vertices: Vec<DVec3>,
+    /// The receiving elements.
     pub elements: Vec<Element>,
+    /// The shooting patches.
     pub patches: Vec<Patch>,
+    /// Material data per (split) surface.
     pub surfaces: Vec<SurfaceData>,
     /// Object names, as in the scene.
     pub objects: Vec<String>,
@@ -202,6 +222,7 @@ impl Mesh {
         self.elements.len()
     }
 
+    /// Whether the mesh has no elements.
     pub fn is_empty(&self) -> bool {
         self.elements.is_empty()
     }

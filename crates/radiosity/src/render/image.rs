@@ -8,30 +8,48 @@ use std::path::{Path, PathBuf};
 #[derive(Debug, thiserror::Error)]
 pub enum ImageError {
     #[error("{}: unsupported image format (use a .exr or .png extension)", path.display())]
-    UnsupportedExtension { path: PathBuf },
-    #[error("{}: image is {width}x{height} with {len} pixels; expected width*height > 0 pixels", path.display())]
-    InvalidImage {
+    /// The extension is not .png or .exr.
+    UnsupportedExtension {
+        /// The file.
         path: PathBuf,
+    },
+    #[error("{}: image is {width}x{height} with {len} pixels; expected width*height > 0 pixels", path.display())]
+    /// The pixel buffer does not match the size.
+    InvalidImage {
+        /// The file.
+        path: PathBuf,
+        /// Width in pixels.
         width: u32,
+        /// Height in pixels.
         height: u32,
+        /// Pixels held.
         len: usize,
     },
     #[error("{}: {source}", path.display())]
+    /// Reading or writing failed.
     Io {
+        /// The file.
         path: PathBuf,
         #[source]
+        /// The underlying error.
         source: io::Error,
     },
     #[error("{}: OpenEXR: {source}", path.display())]
+    /// The OpenEXR codec failed.
     Exr {
+        /// The file.
         path: PathBuf,
         #[source]
+        /// The underlying error.
         source: exr::error::Error,
     },
     #[error("{}: PNG: {source}", path.display())]
+    /// The PNG codec failed.
     Png {
+        /// The file.
         path: PathBuf,
         #[source]
+        /// The underlying error.
         source: image::ImageError,
     },
 }
@@ -43,8 +61,11 @@ pub enum ImageError {
 /// the convention of `tests/reference/cornell.camera.json`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Image {
+    /// Width in pixels.
     pub width: u32,
+    /// Height in pixels.
     pub height: u32,
+    /// Pixels, row-major from the top-left.
     pub pixels: Vec<[f32; 3]>,
 }
 

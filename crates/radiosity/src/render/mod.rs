@@ -68,14 +68,24 @@ impl Default for RenderOptions {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum RenderError {
     #[error("image size {width}x{height} is not in 1..={MAX_IMAGE_SIZE} on each axis")]
-    InvalidSize { width: u32, height: u32 },
+    /// Width or height out of range.
+    InvalidSize {
+        /// Width in pixels.
+        width: u32,
+        /// Height in pixels.
+        height: u32,
+    },
     #[error("samples per axis {0} is not in 1..={MAX_SAMPLES_PER_AXIS}")]
+    /// Supersamples out of range.
     InvalidSamples(u32),
     #[error("invalid camera: {0}")]
+    /// The camera cannot form an image.
     InvalidCamera(String),
     #[error("triangle {0} has a non-finite vertex position")]
+    /// A triangle (by index) has a non-finite coordinate or value.
     NonFiniteTriangle(usize),
     #[error("wire edge {0} has a non-finite endpoint")]
+    /// A wireframe edge (by index) has a non-finite coordinate.
     NonFiniteEdge(usize),
 }
 

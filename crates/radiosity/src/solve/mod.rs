@@ -44,6 +44,7 @@ pub enum SolverKind {
 }
 
 impl SolverKind {
+    /// Every solver.
     pub const ALL: &'static [SolverKind] = &[
         SolverKind::Direct,
         SolverKind::Jacobi,
@@ -51,6 +52,7 @@ impl SolverKind {
         SolverKind::Progressive,
     ];
 
+    /// The solver's name on the command line and in scene files.
     pub fn name(self) -> &'static str {
         match self {
             SolverKind::Direct => "direct",
@@ -79,6 +81,7 @@ impl FromStr for SolverKind {
 /// Solver settings.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SolveOptions {
+    /// The solver.
     pub solver: SolverKind,
     /// Iterative solvers: stop at this relative residual ‖(I − M)B − E‖₂ / ‖E‖₂.
     /// Progressive: stop when the unshot power is below this fraction of the emitted power.
@@ -115,29 +118,41 @@ pub enum SolveError {
          but only {limit_mib} MiB may be used; use fewer elements or patches (--elements, \
          --patch-subdivision) or the progressive solver"
     )]
+    /// The solve would not fit in memory.
     OutOfMemory {
+        /// The solver.
         solver: SolverKind,
+        /// MiB it would need.
         needed_mib: u64,
+        /// MiB that may be used.
         limit_mib: u64,
+        /// Elements in the mesh.
         elements: usize,
+        /// Patches in the mesh.
         patches: usize,
     },
     #[error("the {solver} solver needs the dense element × patch coupling, not '{coupling}'")]
+    /// The solver needs the dense coupling.
     NeedsDense {
+        /// The solver.
         solver: SolverKind,
+        /// The coupling given.
         coupling: &'static str,
     },
     #[error("tolerance must be positive and finite, got {0}")]
+    /// The tolerance is not a positive finite number.
     BadTolerance(f64),
     #[error(
         "the solution diverged (non-finite radiosity); check that every reflectance is below 1"
     )]
+    /// The radiosity became non-finite.
     Diverged,
 }
 
 /// What a solver reached.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SolveStats {
+    /// The solver.
     pub solver: SolverKind,
     /// Iterations (Jacobi, Gauss–Seidel), shots (progressive) or 1 (direct).
     pub iterations: usize,
@@ -160,6 +175,7 @@ pub struct Solution {
     pub unshot: Vec<[f64; 3]>,
     /// Power leaving the scene (hitting no surface), W.
     pub escaped_power: [f64; 3],
+    /// How the solver got there.
     pub stats: SolveStats,
 }
 
