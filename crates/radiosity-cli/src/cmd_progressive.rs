@@ -1,7 +1,7 @@
 //! `radiosity progressive`: progressive-refinement image sequences and their contact sheet.
 
 use crate::args::{SolveArgs, ViewArgs};
-use crate::commands::{load_scene, render_options};
+use crate::commands::{load_scene, render_options, scene_camera};
 use crate::progress::Bars;
 use anyhow::{bail, Context, Result};
 use clap::Args;
@@ -45,14 +45,8 @@ pub fn run(args: ProgressiveArgs) -> Result<()> {
     args.view.add_to(&mut flags);
     let settings = loaded.settings(&flags)?;
     let scene = &loaded.scene;
-    let (lo, hi) = scene.bounds();
-    let camera = radiosity::settings::camera(
-        scene.camera_or_default(),
-        Some((lo + hi) * 0.5),
-        &args.view.camera(),
-    )?;
     let view = View {
-        camera,
+        camera: scene_camera(scene, &args.view)?,
         shading: if args.view.flat {
             Shading::Flat
         } else {

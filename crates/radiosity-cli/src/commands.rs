@@ -159,58 +159,52 @@ fn render(args: RenderArgs) -> Result<()> {
         radiosity::render::check_output(&output)?;
         Ok(output)
     };
-    let (image, output, settings) = if let Some(path) = &args.solution {
+    // Everything to draw: vertices, elements and displayed radiosity, from a saved solution
+    // or a fresh solve, with the camera and the output path checked before any work.
+    let (vertices, elements, radiosity, camera, output, settings) = if let Some(path) =
+        &args.solution
+    {
         let file = SolutionFile::load(path)
             .with_context(|| format!("loading solution {}", path.display()))?;
         let settings = resolve(None, &flags)?;
         let output = output_for(&file.scene)?;
         let base = file.camera.map(Camera::from).unwrap_or_default();
         let vertices = file.vertices();
-        let centre = centre_of(&vertices);
-        let camera = radiosity::settings::camera(base, centre, &args.view.camera())?;
+        let camera = radiosity::settings::camera(base, centre_of(&vertices), &args.view.camera())?;
         let radiosity = file.display_radiosity(settings.render.ambient);
-        let shaded = Shaded {
-            vertices: &vertices,
-            elements: &file.elements,
-            radiosity: &radiosity,
-        };
-        let image = render_elements(
-            &shaded,
-            &camera,
-            shading,
-            args.view.wireframe,
-            &render_options(&settings),
-        )?;
-        (image, output, settings)
+        (vertices, file.elements, radiosity, camera, output, settings)
     } else {
         let loaded = load_scene(args.scene.as_deref())?;
         let settings = loaded.settings(&flags)?;
         let scene = &loaded.scene;
         let output = output_for(&scene.name)?;
-        let (lo, hi) = scene.bounds();
-        let camera = radiosity::settings::camera(
-            scene.camera_or_default(),
-            Some((lo + hi) * 0.5),
-            &args.view.camera(),
-        )?;
+        let camera = scene_camera(scene, &args.view)?;
         let solved = run_solve(scene, &settings, &args.solve)?;
         let radiosity = solved
             .solution
             .display_radiosity(&solved.mesh, settings.render.ambient);
-        let shaded = Shaded {
-            vertices: &solved.mesh.vertices,
-            elements: &solved.mesh.elements,
-            radiosity: &radiosity,
-        };
-        let image = render_elements(
-            &shaded,
-            &camera,
-            shading,
-            args.view.wireframe,
-            &render_options(&settings),
-        )?;
-        (image, output, settings)
+        let mesh = solved.mesh;
+        (
+            mesh.vertices,
+            mesh.elements,
+            radiosity,
+            camera,
+            output,
+            settings,
+        )
     };
+    let shaded = Shaded {
+        vertices: &vertices,
+        elements: &elements,
+        radiosity: &radiosity,
+    };
+    let image = render_elements(
+        &shaded,
+        &camera,
+        shading,
+        args.view.wireframe,
+        &render_options(&settings),
+    )?;
     image
         .write(&output, settings.render.exposure as f32)
         .with_context(|| format!("writing {}", output.display()))?;
@@ -234,6 +228,17 @@ fn default_output(name: &str) -> PathBuf {
         && !name.contains(['/', '\\'])
         && Path::new(name).file_name().is_some();
     PathBuf::from(format!("{}.png", if plain { name } else { "render" }))
+}
+
+/// The scene's camera (or one framing it) with the camera flags applied; `--eye` alone looks
+/// at the scene's centre.
+pub(crate) fn scene_camera(scene: &Scene, view: &crate::args::ViewArgs) -> Result<Camera> {
+    let (lo, hi) = scene.bounds();
+    Ok(radiosity::settings::camera(
+        scene.camera_or_default(),
+        Some((lo + hi) * 0.5),
+        &view.camera(),
+    )?)
 }
 
 /// The renderer's options from the resolved settings.

@@ -6,7 +6,7 @@
 //! byte budget, so a patch that shoots again costs nothing. Gathering (for residuals and
 //! refinement) computes rows on the fly.
 
-use super::{patch_means, Coupling, NearField};
+use super::{patch_means, shot_mean, Coupling, NearField};
 use crate::formfactor::Engine;
 use crate::mesh::Mesh;
 use rayon::prelude::*;
@@ -190,13 +190,7 @@ impl Coupling for Columns<'_> {
 
     fn shoot(&self, source: usize, shot: &[[f64; 3]], receive: &mut dyn FnMut(usize, [f64; 3])) {
         let range = self.source_elements(source);
-        let mut mean = [0.0; 3];
-        for (s, u) in range.clone().zip(shot) {
-            let a = self.mesh.elements[s as usize].area / self.patch_area[source];
-            for c in 0..3 {
-                mean[c] += u[c] * a;
-            }
-        }
+        let mean = shot_mean(self.mesh, range.clone(), self.patch_area[source], shot);
         self.with_column(source, |column| {
             for (e, &f) in column.far.iter().enumerate() {
                 if f != 0.0 {

@@ -10,7 +10,7 @@
 //! The far factors are a dense row-major matrix of f32 (zero where the pair is near), the
 //! near links a sparse list per element.
 
-use super::{patch_means, Coupling, NearField};
+use super::{patch_means, shot_mean, Coupling, NearField};
 use crate::formfactor::Engine;
 use crate::mesh::Mesh;
 use crate::progress::Progress;
@@ -228,13 +228,7 @@ impl Coupling for Dense<'_> {
     /// to the source's elements at each element's own shot.
     fn shoot(&self, source: usize, shot: &[[f64; 3]], receive: &mut dyn FnMut(usize, [f64; 3])) {
         let range = self.source_elements(source);
-        let mut mean = [0.0; 3];
-        for (s, u) in range.clone().zip(shot) {
-            let a = self.mesh.elements[s as usize].area / self.patch_area[source];
-            for c in 0..3 {
-                mean[c] += u[c] * a;
-            }
-        }
+        let mean = shot_mean(self.mesh, range.clone(), self.patch_area[source], shot);
         for e in 0..self.mesh.elements.len() {
             let f = self.data[e * self.patches + source] as f64;
             if f != 0.0 {

@@ -87,6 +87,19 @@ pub trait Coupling: Sync {
     }
 }
 
+/// Area-weighted mean (W·m⁻²) of a shot over a source patch: Σ_s A_s u_s / A_p, where `shot`
+/// holds one value per element of `range`.
+pub fn shot_mean(mesh: &Mesh, range: Range<u32>, patch_area: f64, shot: &[[f64; 3]]) -> [f64; 3] {
+    let mut mean = [0.0; 3];
+    for (s, u) in range.zip(shot) {
+        let a = mesh.elements[s as usize].area / patch_area;
+        for c in 0..3 {
+            mean[c] += u[c] * a;
+        }
+    }
+    mean
+}
+
 /// Area-weighted mean of per-element values over each patch's elements.
 pub fn patch_means(mesh: &Mesh, patch_area: &[f64], b: &[[f64; 3]]) -> Vec<[f64; 3]> {
     mesh.patches

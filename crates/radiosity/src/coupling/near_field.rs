@@ -40,16 +40,7 @@ impl NearField {
         let info: Vec<(DVec3, f64, f64)> = mesh
             .patches
             .par_iter()
-            .map(|p| {
-                let c = p.polygon.centroid();
-                let r = p
-                    .polygon
-                    .vertices()
-                    .iter()
-                    .map(|v| v.distance(c))
-                    .fold(0.0, f64::max);
-                (c, r, p.polygon.diameter())
-            })
+            .map(|p| extent(&p.polygon))
             .collect();
         let grid = SphereGrid::new(
             info.iter()
@@ -101,6 +92,17 @@ impl NearField {
             .binary_search(&(patch as u32))
             .is_ok()
     }
+}
+
+/// A patch's (centroid, radius about it, diameter), m.
+fn extent(polygon: &crate::geometry::Polygon) -> (DVec3, f64, f64) {
+    let c = polygon.centroid();
+    let r = polygon
+        .vertices()
+        .iter()
+        .map(|v| v.distance(c))
+        .fold(0.0, f64::max);
+    (c, r, polygon.diameter())
 }
 
 /// Spheres binned into the cells of a uniform grid they overlap: the spheres containing a
@@ -193,14 +195,7 @@ mod tests {
                 .iter()
                 .enumerate()
                 .filter(|(_, p)| {
-                    let c = p.polygon.centroid();
-                    let r = p
-                        .polygon
-                        .vertices()
-                        .iter()
-                        .map(|v| v.distance(c))
-                        .fold(0.0, f64::max);
-                    let d = p.polygon.diameter();
+                    let (c, r, d) = extent(&p.polygon);
                     p.surface != e.surface
                         && e.centre.distance(c) - r < KAPPA * d
                         && p.polygon.distance_to(e.centre) < KAPPA * d

@@ -329,6 +329,60 @@ pub fn relative_difference(mesh: &Mesh, a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
     }
 }
 
+/// The loop of the stationary iterations (Jacobi, Gauss–Seidel): from B = E, apply `step`
+/// (which updates B in place) until the relative change ‖B⁽ᵏ⁺¹⁾ − B⁽ᵏ⁾‖/‖E‖ is at most the
+/// tolerance, the iteration cap is reached, or the observer stops it; every step reported.
+pub fn iterate(
+    coupling: &dyn Coupling,
+    solver: SolverKind,
+    options: &SolveOptions,
+    observer: &mut dyn Observer,
+    step: &mut dyn FnMut(&mut Vec<[f64; 3]>),
+) -> Solution {
+    let mesh = coupling.mesh();
+    let mut clock = observer::SolverClock::start();
+    let mut b = exitance(mesh);
+    let mut residual = f64::INFINITY;
+    let mut iterations = 0;
+    let mut kind = StepKind::Start;
+    loop {
+        let flow = clock.report(observer, |elapsed| Step {
+            solver,
+            kind,
+            index: iterations,
+            residual,
+            tolerance: options.tolerance,
+            elapsed,
+            mesh,
+            radiosity: &b,
+            unshot: None,
+        });
+        if flow == Flow::Stop
+            || residual <= options.tolerance
+            || iterations >= options.max_iterations
+        {
+            break;
+        }
+        let before = b.clone();
+        step(&mut b);
+        residual = relative_difference(mesh, &before, &b);
+        iterations += 1;
+        kind = StepKind::Iteration;
+    }
+    let seconds = clock.seconds();
+    solution_from(
+        coupling,
+        b,
+        SolveStats {
+            solver,
+            iterations,
+            residual,
+            seconds,
+            form_factor_seconds: coupling.form_factor_seconds(),
+        },
+    )
+}
+
 /// The relative residual ‖E + ρK(B) − B‖ / ‖E‖ of radiosities `b` (one gather).
 pub fn residual(coupling: &dyn Coupling, b: &[[f64; 3]]) -> f64 {
     let mesh = coupling.mesh();
