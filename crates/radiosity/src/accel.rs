@@ -358,6 +358,82 @@ impl Bvh {
         self.occluded(a, b - a, eps, 1.0 - eps)
     }
 
+    /// Whether some triangle for which `counts(triangle)` holds may lie within distance
+    /// `radius` of the segment `a`–`b` (a capsule holding the convex hull of two spheres of at
+    /// most that radius about the ends: a conservative shaft). Boxes and triangles are tested
+    /// by their bounding spheres, so a `false` is certain and a `true` only possible.
+    pub fn capsule_hits(
+        &self,
+        a: Vec3,
+        b: Vec3,
+        radius: f32,
+        counts: &dyn Fn(u32) -> bool,
+    ) -> bool {
+        let seg = b - a;
+        let len2 = seg.length_squared();
+        let distance = |p: Vec3| {
+            let t = if len2 > 0.0 {
+                ((p - a).dot(seg) / len2).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            (a + seg * t).distance(p)
+        };
+        let near = |min: Vec3, max: Vec3| {
+            let centre = (min + max) * 0.5;
+            distance(centre) <= radius + (max - min).length() * 0.5
+        };
+        if self.len == 0 || !near(self.bounds.min.into(), self.bounds.max.into()) {
+            return false;
+        }
+        let mut stack = vec![self.root];
+        while let Some(child) = stack.pop() {
+            if child.count() > 0 {
+                for k in child.first()..child.first() + child.count() {
+                    let (packet, ids) = (&self.packets[k], self.ids[k]);
+                    for lane in 0..PACKET {
+                        if lane > 0 && ids[lane] == ids[lane - 1] {
+                            continue;
+                        }
+                        let tri = [0, 1, 2].map(|v| {
+                            Vec3::new(
+                                packet.v[v][0][lane],
+                                packet.v[v][1][lane],
+                                packet.v[v][2][lane],
+                            )
+                        });
+                        let (tmin, tmax) =
+                            (tri[0].min(tri[1]).min(tri[2]), tri[0].max(tri[1]).max(tri[2]));
+                        if near(tmin, tmax) && counts(ids[lane]) {
+                            return true;
+                        }
+                    }
+                }
+            } else {
+                let node = &self.nodes[child.first()];
+                for slot in 0..4 {
+                    if node.used & (1 << slot) == 0 {
+                        continue;
+                    }
+                    let min = Vec3::new(
+                        node.bounds[0][0][slot],
+                        node.bounds[0][1][slot],
+                        node.bounds[0][2][slot],
+                    );
+                    let max = Vec3::new(
+                        node.bounds[1][0][slot],
+                        node.bounds[1][1][slot],
+                        node.bounds[1][2][slot],
+                    );
+                    if near(min, max) {
+                        stack.push(node.children[slot]);
+                    }
+                }
+            }
+        }
+        false
+    }
+
     /// Appends to `out` every triangle whose bounding box overlaps the box [`lo`, `hi`], as
     /// (input index, vertices); `out` is cleared first. Each triangle appears once.
     pub fn triangles_in_box(&self, lo: Vec3, hi: Vec3, out: &mut Vec<(u32, [Vec3; 3])>) {
@@ -904,6 +980,24 @@ impl Visibility {
             offset: 1e-5 * diameter.max(1e-9),
             triangle_polygon,
         }
+    }
+
+    /// Whether some surface other than those `exclude` accepts (by polygon index) may lie in
+    /// the capsule of `radius` (m) about the segment `a`–`b`: a conservative test that
+    /// nothing can block light between two spheres (see [`Bvh::capsule_hits`]).
+    pub fn maybe_blocked(
+        &self,
+        a: DVec3,
+        b: DVec3,
+        radius: f64,
+        exclude: &dyn Fn(usize) -> bool,
+    ) -> bool {
+        self.bvh.capsule_hits(
+            a.as_vec3(),
+            b.as_vec3(),
+            (radius * (1.0 + 1e-6) + self.offset) as f32,
+            &|t| !exclude(self.triangle_polygon[t as usize] as usize),
+        )
     }
 
     /// How far ray ends are lifted off their surfaces, m.

@@ -3,6 +3,7 @@
 //! through here.
 
 use crate::accel::Visibility;
+use crate::coupling::hierarchical::{HierarchicalError, HierarchicalOptions};
 use crate::coupling::{Columns, Coupling, Dense, NearField};
 use crate::display::{DisplayMesh, Shading};
 use crate::formfactor::{engine, FormFactorMethod};
@@ -22,6 +23,8 @@ pub struct SolveSettings {
     pub form_factor: FormFactorMethod,
     /// The solver and its stopping rule.
     pub solve: SolveOptions,
+    /// The hierarchical solver's link tolerance and minimum element area.
+    pub hierarchical: HierarchicalOptions,
 }
 
 /// A solved scene.
@@ -46,6 +49,9 @@ pub enum PipelineError {
     /// Rendering failed.
     #[error("rendering")]
     Render(#[from] RenderError),
+    /// The hierarchy could not be built.
+    #[error("hierarchical radiosity")]
+    Hierarchical(#[from] HierarchicalError),
 }
 
 /// Meshes and solves a scene.
@@ -64,6 +70,20 @@ pub fn solve_scene_observed(
     progress: &dyn Progress,
     observer: &mut dyn Observer,
 ) -> Result<Solved, PipelineError> {
+    if settings.solve.solver == SolverKind::Hierarchical {
+        let solved = crate::solve::hierarchical::solve(
+            scene,
+            settings.form_factor,
+            settings.hierarchical,
+            &settings.solve,
+            observer,
+        )?;
+        return Ok(Solved {
+            mesh: solved.mesh,
+            solution: solved.solution,
+            form_factor: settings.form_factor,
+        });
+    }
     let mesh = Mesh::build(scene, &settings.mesh)?;
     let solution = solve_mesh(&mesh, settings, progress, observer)?;
     Ok(Solved {
@@ -79,7 +99,7 @@ pub fn solve_scene_observed(
 pub fn solver_memory(solver: SolverKind, elements: usize, patches: usize) -> u128 {
     let m = patches as u128;
     match solver {
-        SolverKind::Progressive => 0,
+        SolverKind::Progressive | SolverKind::Hierarchical => 0,
         SolverKind::Direct => Dense::bytes_for(elements, patches) + 5 * 8 * m * m,
         _ => Dense::bytes_for(elements, patches),
     }

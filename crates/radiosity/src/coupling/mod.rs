@@ -22,6 +22,7 @@
 
 pub mod columns;
 pub mod dense;
+pub mod hierarchical;
 pub mod near_field;
 
 pub use columns::Columns;

@@ -195,7 +195,8 @@ pub trait Kernel: Sync + Send {
 ///
 /// Probe stage (after Wallace, Elmquist & Haines 1989): with one receiver point, or with
 /// `all_probes`, every point casts a ray to every probe; otherwise each casts one, rotating
-/// through the probes. All visible gives exactly 1, none exactly 0. Otherwise the fraction is
+/// through the probes; probes behind a point's tangent plane are skipped. All visible gives
+/// exactly 1, none exactly 0. Otherwise (or when no probe was in front) the fraction is
 /// Σ_x w_x Σ_k F_{x→ΔA_k} V(x, y_k) / Σ_x w_x Σ_k F_{x→ΔA_k} over the penumbra sub-areas ΔA_k
 /// with centroids y_k, F the exact point-to-polygon factor.
 pub fn visible_fraction(
@@ -214,14 +215,18 @@ pub fn visible_fraction(
     for (i, (x, _)) in receivers.iter().enumerate() {
         for k in 0..per_point {
             let y = s.probes[(i + k) % s.probes.len()];
+            // A probe behind the receiver's tangent plane says nothing about what it sees.
+            if (y - *x).dot(n) <= 0.0 {
+                continue;
+            }
             total += 1;
             visible += usize::from(vis.visible(*x, n, y, s.normal));
         }
     }
-    if visible == total {
+    if total > 0 && visible == total {
         return 1.0;
     }
-    if visible == 0 {
+    if total > 0 && visible == 0 {
         return 0.0;
     }
     let (mut seen, mut all) = (0.0, 0.0);

@@ -132,7 +132,7 @@ pub struct SurfaceData {
 }
 
 /// The meshed scene: vertices, elements, patches and per-surface material data.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Default)]
 pub struct Mesh {
     /// Vertices shared by the elements of a surface, m.
     pub vertices: Vec<DVec3>,

@@ -21,6 +21,7 @@ pub enum StepKind {
 }
 
 /// One step of a solver, as an observer sees it.
+#[derive(Clone, Copy)]
 pub struct Step<'a> {
     /// The solver.
     pub solver: SolverKind,

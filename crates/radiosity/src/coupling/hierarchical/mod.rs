@@ -1,0 +1,1349 @@
+//! Hierarchical radiosity with clustering: links at every level of a hierarchy over the
+//! whole scene, refined by an error oracle on the transported power.
+//!
+//! After Hanrahan, Salzman & Aupperle (1991), "A rapid hierarchical radiosity algorithm",
+//! with clustering after Smits, Arvo & Greenberg (1994) and Sillion (1995), "A unified
+//! hierarchical algorithm for global illumination with scattering volumes and object
+//! clusters":
+//!
+//! - **Hierarchy** ([`tree`]): the input polygons are the leaves of a binary cluster tree
+//!   (a bounding volume hierarchy over them); every polygon refines on demand into
+//!   sub-elements. The first link is the root's link to itself; nothing is quadratic in the
+//!   number of input polygons.
+//! - **Links** p ← q (receiver p gathers from source q), refined by BF refinement: a link is
+//!   kept when its estimated error in transported power, ΔF · B_q^max · A_p, is at most
+//!   ε · Φ_emitted (ΔF the spread of the transfer over the receiver's and source's sample
+//!   points, including partial visibility); otherwise the larger of p and q is subdivided
+//!   (a cluster opens into its children, a polygon into sub-elements) down to a minimum
+//!   element area.
+//! - **Transfers**: polygon ← polygon by the form-factor kernel (receiver Gauss points ×
+//!   exact point-to-polygon × shadow rays); clusters whose normal cone faces the other end
+//!   are *oriented* and exchange vector quantities — a source cluster by its vector exitance
+//!   M = Σ B_i A_i n_i, a receiving cluster by a vector irradiance e (member i receives
+//!   e · n_i) — exact for flat clusters (a tessellated wall behaves as the wall) and
+//!   power-conserving (Σ A_i e · n_i = e · N); a cluster with a wide normal cone transfers
+//!   only when an upper bound of the transfer is below the threshold, as an isotropic
+//!   volume (projected area A/4 in every direction, Sillion 1995 §II.C), spread uniformly.
+//! - **Solution**: gather over links from the previous iterate (Jacobi: parallel and
+//!   deterministic), then push irradiance down and pull radiosity up (area-weighted), with
+//!   ρ applied only at the leaves; refinement between stages as radiosities become known.
+//!
+//! The leaves (input polygons and their sub-elements) form the mesh that the solution,
+//! display and exports use.
+
+pub mod tree;
+
+use crate::accel::Visibility;
+use crate::coupling::Coupling;
+use crate::formfactor::analytic_point::point_to_polygon;
+use crate::formfactor::kernel::{Kernel, Receiver, SourcePolygon};
+use crate::geometry::Polygon;
+use crate::mesh::{Element, Mesh, Patch, PatchId, SurfaceData};
+use crate::scene::Scene;
+use glam::DVec3;
+use rayon::prelude::*;
+use std::collections::HashMap;
+use std::f64::consts::PI;
+use std::ops::Range;
+use std::sync::OnceLock;
+use tree::{InputPolygon, Kind, Tree, NONE};
+
+/// Settings of the hierarchical coupling.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HierarchicalOptions {
+    /// ε: the largest error in power a link may carry, as a fraction of the scene's emitted
+    /// power (dimensionless).
+    pub epsilon: f64,
+    /// Smallest element, as a fraction of the scene's total surface area.
+    pub min_area_fraction: f64,
+    /// Sample points per cluster end of a link.
+    pub cluster_samples: usize,
+    /// Bytes the hierarchy and its links may take; refinement stops there.
+    pub memory_limit: u64,
+}
+
+impl Default for HierarchicalOptions {
+    fn default() -> Self {
+        Self {
+            epsilon: 3e-5,
+            min_area_fraction: 1e-5,
+            cluster_samples: 4,
+            memory_limit: crate::solve::available_memory() / 2,
+        }
+    }
+}
+
+/// Why the hierarchy could not be built.
+#[derive(Debug, thiserror::Error)]
+pub enum HierarchicalError {
+    /// Nothing to solve.
+    #[error("the scene has no surfaces")]
+    EmptyScene,
+    /// The input alone would not fit.
+    #[error(
+        "the hierarchy of {polygons} polygons would need about {needed_mib} MiB, but only \
+         {limit_mib} MiB may be used"
+    )]
+    OutOfMemory {
+        /// Input polygons.
+        polygons: usize,
+        /// MiB it would need.
+        needed_mib: u64,
+        /// MiB that may be used.
+        limit_mib: u64,
+    },
+    /// A setting is out of range.
+    #[error("{0}")]
+    BadOption(String),
+}
+
+/// How a link transfers light (see the module documentation).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Transfer {
+    /// Polygon ← polygon: H_p(x) += (F + g · (x − c_p)) · B̄_q — the form factor as an affine
+    /// function over the receiver (its mean F at the centroid c_p, gradient g in the
+    /// receiver's plane), so that the pieces of a receiver get the value at their own place.
+    Polygon {
+        /// Mean form factor over the receiver.
+        f: f32,
+        /// Its gradient in the receiver's plane, m⁻¹.
+        gradient: [f32; 3],
+    },
+    /// Polygon ← oriented cluster: H_p += g · M_q.
+    FromCluster([f32; 3]),
+    /// Oriented cluster ← polygon: e_p += B̄_q · g.
+    ToCluster([f32; 3]),
+    /// Oriented cluster ← oriented cluster: e_p += T · M_q (T symmetric: xx, yy, zz, xy, xz, yz).
+    Tensor([f32; 6]),
+    /// Either end a wide cluster: H_p += c · B̄_q, spread uniformly.
+    Uniform(f32),
+}
+
+/// A link p ← q, stored with its receiver.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Link {
+    /// The source node.
+    pub source: u32,
+    /// How it transfers.
+    pub transfer: Transfer,
+    /// Geometric error coefficient: the link's error in power is `delta · B_q^max · A_p`.
+    pub delta: f32,
+}
+
+/// β: surfaces with less than this fraction of the scene's mean irradiance are resolved
+/// to ε of that floor rather than of their own irradiance.
+const DARK_FLOOR: f64 = 0.05;
+
+/// Bytes per node (arena, vertices, solution state) for memory estimates.
+const NODE_BYTES: u64 = 400;
+/// Bytes per link (with the vector's slack).
+const LINK_BYTES: u64 = 48;
+
+/// Per-node solution state (W·m⁻²; vectors in W).
+#[derive(Debug, Clone, Copy, Default)]
+struct State {
+    /// Area-averaged radiosity.
+    b: [f64; 3],
+    /// Largest leaf radiosity (max channel).
+    b_max: f64,
+    /// Vector exitance Σ B_i A_i n_i per channel.
+    m: [DVec3; 3],
+    /// Area-averaged irradiance (max channel).
+    h: f64,
+}
+
+/// The hierarchical coupling: the hierarchy, its links and the leaf mesh.
+pub struct Hierarchical {
+    tree: Tree,
+    visibility: Visibility,
+    /// A visibility query over an empty scene: the kernels' unoccluded values.
+    open: Visibility,
+    kernel: Box<dyn Kernel>,
+    links: Vec<Vec<Link>>,
+    state: Vec<State>,
+    sources: Vec<OnceLock<SourcePolygon>>,
+    options: HierarchicalOptions,
+    min_area: f64,
+    emitted: f64,
+    /// The irradiance below which surfaces count as dark: β = 0.05 of the scene's mean
+    /// irradiance (at least of Φ_emitted / A_total), W·m⁻².
+    dark_floor: f64,
+    total_area: f64,
+    mesh: Mesh,
+    /// Leaf node of each mesh element.
+    leaves: Vec<u32>,
+    /// Links refused further refinement for memory.
+    pub capped: bool,
+    /// Links accepted although their error exceeded the threshold (nothing left to split).
+    pub forced: usize,
+    form_factor_seconds: f64,
+}
+
+/// What the oracle decided for a candidate link.
+enum Decision {
+    /// No light passes (facing away, coplanar).
+    Drop,
+    /// Keep it.
+    Accept(Link),
+    /// Subdivide this node and link its children instead.
+    Split(u32),
+}
+
+impl Hierarchical {
+    /// Builds the hierarchy over the scene's surfaces with the kernel of `kernel`.
+    pub fn new(
+        scene: &Scene,
+        kernel: Box<dyn Kernel>,
+        options: HierarchicalOptions,
+    ) -> Result<Self, HierarchicalError> {
+        if scene.surfaces.is_empty() {
+            return Err(HierarchicalError::EmptyScene);
+        }
+        if !(options.epsilon.is_finite() && options.epsilon > 0.0 && options.epsilon < 1.0) {
+            return Err(HierarchicalError::BadOption(format!(
+                "the link error tolerance ε must be between 0 and 1, got {}",
+                options.epsilon
+            )));
+        }
+        if !(options.min_area_fraction.is_finite()
+            && options.min_area_fraction > 0.0
+            && options.min_area_fraction < 1.0)
+        {
+            return Err(HierarchicalError::BadOption(format!(
+                "the minimum element area must be between 0 and 1 of the total area, got {}",
+                options.min_area_fraction
+            )));
+        }
+        let polygons = scene.surfaces.len();
+        let needed = 4 * polygons as u64 * NODE_BYTES;
+        if needed > options.memory_limit {
+            return Err(HierarchicalError::OutOfMemory {
+                polygons,
+                needed_mib: needed >> 20,
+                limit_mib: options.memory_limit >> 20,
+            });
+        }
+        let objects = scene.object_names();
+        let object_index: HashMap<&str, u32> = objects
+            .iter()
+            .enumerate()
+            .map(|(i, o)| (o.as_str(), i as u32))
+            .collect();
+        let pieces: Vec<(usize, Polygon)> = if std::env::var_os("RADIOSITY_HR_SPLIT").is_some() {
+            crate::mesh::split_at_contacts(scene)
+        } else {
+            scene.surfaces.iter().enumerate().map(|(i, s)| (i, s.polygon.clone())).collect()
+        };
+        let inputs: Vec<(Polygon, InputPolygon)> = pieces
+            .into_iter()
+            .map(|(i, poly)| {
+                let s = &scene.surfaces[i];
+                let m = scene.material(s);
+                (
+                    poly,
+                    InputPolygon {
+                        surface: i as u32,
+                        object: object_index[s.object.as_str()],
+                        reflectance: m.reflectance,
+                        exitance: m.exitance(),
+                        node: NONE,
+                    },
+                )
+            })
+            .collect();
+        let diameter = {
+            let (lo, hi) = scene.bounds();
+            (hi - lo).length().max(1e-9)
+        };
+        let visibility =
+            Visibility::from_polygons(inputs.iter().map(|(p, _)| p.vertices()), diameter);
+        let tree = Tree::build(inputs);
+        let total_area = tree.area_prefix.last().copied().unwrap_or(0.0);
+        let emitted: f64 = scene
+            .surfaces
+            .iter()
+            .map(|s| {
+                let e = scene.material(s).exitance();
+                e[0].max(e[1]).max(e[2]) * s.polygon.area()
+            })
+            .sum();
+        let mut h = Self {
+            visibility,
+            open: Visibility::from_polygons(std::iter::empty::<&[DVec3]>(), diameter),
+            kernel,
+            links: Vec::new(),
+            state: Vec::new(),
+            sources: Vec::new(),
+            options,
+            min_area: options.min_area_fraction * total_area,
+            emitted,
+            dark_floor: DARK_FLOOR * emitted / total_area.max(f64::MIN_POSITIVE),
+            total_area,
+            mesh: Mesh::default(),
+            leaves: Vec::new(),
+            capped: false,
+            forced: 0,
+            form_factor_seconds: 0.0,
+            tree,
+        };
+        h.grow();
+        h.rebuild_mesh(&objects, scene);
+        Ok(h)
+    }
+
+    /// Keeps the per-node arrays as long as the arena.
+    fn grow(&mut self) {
+        let n = self.tree.nodes.len();
+        self.links.resize_with(n, Vec::new);
+        self.state.resize(n, State::default());
+        self.sources.resize_with(n, OnceLock::new);
+    }
+
+    /// The hierarchy.
+    pub fn tree(&self) -> &Tree {
+        &self.tree
+    }
+
+    /// The links of node `node` (as receiver).
+    pub fn links_of(&self, node: u32) -> &[Link] {
+        &self.links[node as usize]
+    }
+
+    /// The hierarchy node of each mesh element.
+    pub fn leaf_nodes(&self) -> &[u32] {
+        &self.leaves
+    }
+
+    /// Number of links.
+    pub fn link_count(&self) -> usize {
+        self.links.iter().map(Vec::len).sum()
+    }
+
+    /// Bytes held by nodes and links (estimate).
+    pub fn bytes(&self) -> u64 {
+        self.tree.nodes.len() as u64 * NODE_BYTES + self.link_count() as u64 * LINK_BYTES
+    }
+
+    /// Emitted power (max over channels), W: the scale of ε.
+    pub fn emitted_power(&self) -> f64 {
+        self.emitted
+    }
+
+    fn source(&self, node: u32) -> &SourcePolygon {
+        self.sources[node as usize].get_or_init(|| self.kernel.source(self.tree.polygon(node)))
+    }
+
+    fn divisible(&self, node: u32) -> bool {
+        let n = &self.tree.nodes[node as usize];
+        match n.kind {
+            Kind::Cluster => n.child_count > 0,
+            // Children of a quad or triangle have a quarter of its area, of a larger polygon
+            // about half.
+            Kind::Polygon { .. } => {
+                let parts = if n.vertex_count <= 4 { 4.0 } else { 2.0 };
+                n.area / parts >= self.min_area
+            }
+        }
+    }
+
+    /// The irradiance error (W·m⁻²) a link into node `p` may cause: ε times the irradiance
+    /// of the input polygon `p` belongs to (a cluster: its own), or of the floor
+    /// β · H̄_scene for surfaces darker than that.
+    fn tolerance(&self, p: u32, epsilon: f64) -> f64 {
+        let n = &self.tree.nodes[p as usize];
+        if std::env::var_os("RADIOSITY_BF").is_some() {
+            return epsilon * self.emitted / n.area.max(f64::MIN_POSITIVE);
+        }
+        let h = match n.kind {
+            Kind::Polygon { input } => {
+                self.state[self.tree.inputs[input as usize].node as usize].h
+            }
+            Kind::Cluster => self.state[p as usize].h,
+        };
+        epsilon * h.max(self.dark_floor)
+    }
+
+    /// Refines the links with the current radiosities until every link's error — the spread
+    /// of its form factor over the sample points, partial visibility and the source's own
+    /// non-uniformity, times the source's radiosity: ΔF · B_q^max, W·m⁻² — is at most
+    /// ε times its receiver's irradiance (see [`Hierarchical::tolerance`]), or nothing is
+    /// left to split. In power, ΔF · B_q · A_p ≤ ε · H_P · A_p: BF refinement with the
+    /// threshold scaled to the power the receiver gathers, so every surface (not only the
+    /// bright ones) is resolved to ε. Returns whether the hierarchy changed. The first call
+    /// starts from the root's link to itself.
+    pub fn refine(&mut self, epsilon: f64) -> bool {
+        let started = std::time::Instant::now();
+        let leaves_before = self.tree.nodes.len();
+        // Links to re-examine: every link whose error now exceeds the threshold.
+        let mut pending: Vec<(u32, u32)> = Vec::new();
+        if self.link_count() == 0 {
+            pending.push((0, 0));
+        } else {
+            for p in 0..self.links.len() {
+                let tol = self.tolerance(p as u32, epsilon);
+                let state = &self.state;
+                let (keep, redo): (Vec<Link>, Vec<Link>) = self.links[p]
+                    .iter()
+                    .partition(|l| (l.delta as f64) * state[l.source as usize].b_max <= tol);
+                if !redo.is_empty() {
+                    pending.extend(redo.iter().map(|l| (p as u32, l.source)));
+                    self.links[p] = keep;
+                }
+            }
+        }
+        let mut forced = 0;
+        while !pending.is_empty() {
+            let at_cap = self.bytes() > self.options.memory_limit;
+            self.capped |= at_cap;
+            let decisions: Vec<Decision> = pending
+                .par_iter()
+                .map(|&(p, q)| self.decide(p, q, self.tolerance(p, epsilon), at_cap))
+                .collect();
+            let mut split: Vec<u32> = decisions
+                .iter()
+                .filter_map(|d| match d {
+                    Decision::Split(n) => Some(*n),
+                    _ => None,
+                })
+                .collect();
+            split.sort_unstable();
+            split.dedup();
+            for n in split {
+                if self.tree.nodes[n as usize].child_count == 0 {
+                    self.tree.subdivide(n);
+                }
+            }
+            self.grow();
+            let mut next = Vec::new();
+            for (&(p, q), d) in pending.iter().zip(decisions) {
+                match d {
+                    Decision::Drop => {}
+                    Decision::Accept(link) => {
+                        if (link.delta as f64) * self.state[q as usize].b_max
+                            > self.tolerance(p, epsilon)
+                        {
+                            forced += 1;
+                        }
+                        self.links[p as usize].push(link);
+                    }
+                    Decision::Split(n) => {
+                        if p == q {
+                            // A cluster's link to itself: every ordered pair of its children.
+                            let children = self.tree.nodes[n as usize].children();
+                            for a in children.clone() {
+                                for b in children.clone() {
+                                    next.push((a, b));
+                                }
+                            }
+                        } else if n == p {
+                            next.extend(self.tree.nodes[p as usize].children().map(|c| (c, q)));
+                        } else {
+                            next.extend(self.tree.nodes[q as usize].children().map(|c| (p, c)));
+                        }
+                    }
+                }
+            }
+            // Children inherit their parent's radiosity until the next solve.
+            self.inherit_state(leaves_before);
+            next.sort_unstable();
+            pending = next;
+        }
+        for l in &mut self.links {
+            l.sort_by_key(|l| l.source);
+        }
+        self.forced = forced;
+        self.form_factor_seconds += started.elapsed().as_secs_f64();
+        self.tree.nodes.len() != leaves_before
+    }
+
+    /// New nodes (index ≥ `from`) take their parent's state, so that the error estimates of
+    /// their links use sensible radiosities before the next solve.
+    fn inherit_state(&mut self, from: usize) {
+        for i in from..self.tree.nodes.len() {
+            let parent = self.tree.nodes[i].parent;
+            if parent != NONE && self.state[i].b_max == 0.0 {
+                let mut s = self.state[parent as usize];
+                let n = &self.tree.nodes[i];
+                s.m = s.b.map(|b| n.vector_area * b);
+                self.state[i] = s;
+            }
+        }
+    }
+
+    /// The oracle for the candidate link p ← q.
+    fn decide(&self, p: u32, q: u32, threshold: f64, at_cap: bool) -> Decision {
+        let (np, nq) = (&self.tree.nodes[p as usize], &self.tree.nodes[q as usize]);
+        if p == q {
+            return if np.is_polygon() {
+                Decision::Drop // a planar polygon does not see itself
+            } else {
+                Decision::Split(p)
+            };
+        }
+        // Facing: a polygon sees nothing behind its plane; a polygon source emits nothing
+        // behind its plane.
+        if np.is_polygon() && self.behind(q, p) {
+            return Decision::Drop;
+        }
+        if nq.is_polygon() && self.behind(p, q) {
+            return Decision::Drop;
+        }
+        let estimate = self.estimate(p, q);
+        let error = estimate.delta * self.state[q as usize].b_max;
+        let can_p = self.divisible(p);
+        let can_q = self.divisible(q);
+        match estimate.transfer {
+            Some(transfer) if error <= threshold || at_cap || (!can_p && !can_q) => {
+                Decision::Accept(Link {
+                    source: q,
+                    transfer,
+                    delta: estimate.delta as f32,
+                })
+            }
+            _ => {
+                // Split the larger end that can be split (a wide or overlapping cluster must
+                // open); the source when its own non-uniformity dominates.
+                let choice = match (can_p, can_q) {
+                    (true, true) => {
+                        if estimate.must_open_q || (estimate.source_dominates && !estimate.must_open_p) {
+                            q
+                        } else if estimate.must_open_p || np.radius >= nq.radius {
+                            p
+                        } else {
+                            q
+                        }
+                    }
+                    (true, false) => p,
+                    (false, true) => q,
+                    (false, false) => {
+                        // Only reachable for a transfer that cannot be evaluated between two
+                        // indivisible nodes (overlapping polygons): nothing passes.
+                        return Decision::Drop;
+                    }
+                };
+                Decision::Split(choice)
+            }
+        }
+    }
+
+    /// Whether node `a` lies entirely behind polygon node `poly`'s plane (within 10⁻⁹ of
+    /// the pair's size).
+    fn behind(&self, a: u32, poly: u32) -> bool {
+        let (na, np) = (&self.tree.nodes[a as usize], &self.tree.nodes[poly as usize]);
+        let origin = self.tree.polygon(poly)[0];
+        let tol = 1e-9 * (na.radius + np.radius);
+        if na.is_polygon() {
+            self.tree
+                .polygon(a)
+                .iter()
+                .all(|v| (*v - origin).dot(np.axis) <= tol)
+        } else {
+            (na.centre - origin).dot(np.axis) + na.radius <= tol
+        }
+    }
+
+    /// Whether cluster `c` faces node `other` with all its members: its normal cone, widened
+    /// by the angle the pair subtends, stays within 90° of the direction to `other`.
+    fn oriented(&self, c: u32, other: u32) -> bool {
+        let (nc, no) = (&self.tree.nodes[c as usize], &self.tree.nodes[other as usize]);
+        let d = no.centre - nc.centre;
+        let r = d.length();
+        if r <= nc.radius + no.radius || nc.cone_cos <= 0.0 {
+            return false;
+        }
+        let to = (d / r).dot(nc.axis).clamp(-1.0, 1.0).acos();
+        let half = nc.cone_cos.clamp(-1.0, 1.0).acos();
+        let spread = ((nc.radius + no.radius) / r).min(1.0).asin();
+        to + half + spread < 0.5 * PI
+    }
+
+    /// Whether node `a` lies entirely in front of polygon node `poly`'s plane.
+    fn in_front(&self, a: u32, poly: u32) -> bool {
+        let (na, np) = (&self.tree.nodes[a as usize], &self.tree.nodes[poly as usize]);
+        let origin = self.tree.polygon(poly)[0];
+        (na.centre - origin).dot(np.axis) > na.radius
+    }
+
+    /// The transfer of the link p ← q and its geometric error coefficient.
+    fn estimate(&self, p: u32, q: u32) -> Estimate {
+        let (np, nq) = (&self.tree.nodes[p as usize], &self.tree.nodes[q as usize]);
+        match (np.is_polygon(), nq.is_polygon()) {
+            (true, true) => self.polygon_polygon(p, q),
+            (true, false) => {
+                if self.oriented(q, p) && self.in_front(q, p) {
+                    self.sampled(p, q, End::Polygon, End::Oriented)
+                } else {
+                    self.wide(p, q, false, true)
+                }
+            }
+            (false, true) => {
+                if self.oriented(p, q) && self.in_front(p, q) {
+                    self.cluster_polygon(p, q)
+                } else {
+                    self.wide(p, q, true, false)
+                }
+            }
+            (false, false) => {
+                if self.oriented(p, q) && self.oriented(q, p) {
+                    self.sampled(p, q, End::Oriented, End::Oriented)
+                } else {
+                    self.wide(p, q, !self.oriented(p, q), !self.oriented(q, p))
+                }
+            }
+        }
+    }
+
+    /// Receiver Gauss order for a polygon of radius `radius` at distance `r` from the source:
+    /// 2 × 2 when far, 3 × 3 within two diameters, 4 × 4 when touching.
+    fn order(radius: f64, r: f64) -> usize {
+        let d = 2.0 * radius;
+        if r > 2.0 * d {
+            2
+        } else if r > 0.5 * d {
+            3
+        } else {
+            4
+        }
+    }
+
+    /// Polygon ← polygon: the kernel's form factor (receiver Gauss points × exact
+    /// point-to-polygon × visibility) as an affine function over the receiver, fitted (least
+    /// squares) to the point values; the error is what the affine fit misses, partial
+    /// visibility, and the source's own non-uniformity.
+    fn polygon_polygon(&self, p: u32, q: u32) -> Estimate {
+        let (np, nq) = (&self.tree.nodes[p as usize], &self.tree.nodes[q as usize]);
+        let r = np.centre.distance(nq.centre);
+        let gap = (r - nq.radius).max(0.0);
+        let order = Self::order(np.radius, gap);
+        let receiver = Receiver::polygon(self.tree.polygon(p).to_vec(), order);
+        let source = self.source(q);
+        let values: Vec<f64> = receiver
+            .points
+            .iter()
+            .map(|&(x, _)| point_to_polygon(x, np.axis, &source.vertices, source.normal))
+            .collect();
+        let unoccluded: f64 = receiver
+            .points
+            .iter()
+            .zip(&values)
+            .map(|((_, w), f)| w * f)
+            .sum();
+        if unoccluded <= 0.0 {
+            return Estimate::zero();
+        }
+        // The kernel's value without occlusion, times the visible fraction estimated here.
+        let open = self.kernel.form_factor(&receiver, source, &self.open);
+        let v = if self.clear(p, q) {
+            1.0
+        } else {
+            self.visible_fraction(&receiver.points, np.axis, source)
+        };
+        let f = open * v;
+        let (gradient, mut misfit) = affine_fit(&receiver.points, &values, np.axis);
+        // The fit is used over the whole receiver: check it at the corners too, where it
+        // extrapolates (and where a touching source makes the form factor change fastest).
+        let centre: DVec3 = receiver.points.iter().map(|(x, w)| *x * *w).sum();
+        for &corner in self.tree.polygon(p) {
+            // Just inside the corner, off the source's plane where they touch.
+            let x = corner + (centre - corner) * 1e-3;
+            let exact = point_to_polygon(x, np.axis, &source.vertices, source.normal);
+            let fitted = unoccluded + gradient.dot(x - centre);
+            misfit = misfit.max((exact - fitted).abs());
+        }
+        let partial = unoccluded * 2.0 * v.min(1.0 - v);
+        let non_uniform = f * self.non_uniformity(q);
+        Estimate {
+            transfer: Some(Transfer::Polygon {
+                f: f as f32,
+                gradient: (gradient * v).as_vec3().to_array(),
+            }),
+            delta: misfit * v + partial + non_uniform,
+            source_dominates: non_uniform > misfit * v + partial,
+            must_open_p: false,
+            must_open_q: false,
+        }
+    }
+
+    /// The fraction of `source` visible from the receiver points (weights summing to 1,
+    /// normal `n`): a ray from every point to every sub-area of the source, weighted by the
+    /// point kernel cos θ_x cos θ_y ΔA/(π r²) of the sub-area (after Wallace, Elmquist &
+    /// Haines 1989).
+    fn visible_fraction(&self, points: &[(DVec3, f64)], n: DVec3, source: &SourcePolygon) -> f64 {
+        let count = source.sub_points.len();
+        if count == 0 {
+            return 1.0;
+        }
+        // A ray from every point to every `stride`-th sub-area (offset per point, so every
+        // sub-area is used): cheap, and exact where all agree in a clear-cut case; where they
+        // disagree (a penumbra), every pair.
+        let estimate = |stride: usize| {
+            let (mut seen, mut all) = (0.0, 0.0);
+            for (k, &(x, w)) in points.iter().enumerate() {
+                for j in (k % stride..count).step_by(stride) {
+                    let (y, area) = (source.sub_points[j], source.sub_area_sizes[j]);
+                    let d = y - x;
+                    let r2 = d.length_squared();
+                    if r2 <= 0.0 {
+                        continue;
+                    }
+                    let u = d / r2.sqrt();
+                    let weight =
+                        w * n.dot(u).max(0.0) * source.normal.dot(-u).max(0.0) * area / r2;
+                    if weight <= 0.0 {
+                        continue;
+                    }
+                    all += weight;
+                    if self.visibility.visible(x, n, y, source.normal) {
+                        seen += weight;
+                    }
+                }
+            }
+            if all > 0.0 {
+                seen / all
+            } else {
+                1.0
+            }
+        };
+        let stride = (count / 4).max(1);
+        let quick = estimate(stride);
+        if stride > 1 && quick > 0.0 && quick < 1.0 {
+            estimate(1)
+        } else {
+            quick
+        }
+    }
+
+    /// How far a source's radiosity is from uniform: (B_max − B̄)/B_max over its leaves (max
+    /// channel), 0 for a uniform source, near 1 for a bright spot on a dark node.
+    fn non_uniformity(&self, q: u32) -> f64 {
+        let sq = &self.state[q as usize];
+        let mean = sq.b.iter().copied().fold(0.0, f64::max);
+        if sq.b_max > 0.0 {
+            ((sq.b_max - mean) / sq.b_max).max(0.0)
+        } else {
+            0.0
+        }
+    }
+
+    /// Whether nothing but the two nodes' own polygons can be in the way between them: no
+    /// other surface within the capsule about their centres of their larger bounding radius
+    /// ([`Visibility::maybe_blocked`]). Then visibility is certain and no ray is needed;
+    /// otherwise rays sample it densely (few rays agreeing would be no proof).
+    fn clear(&self, p: u32, q: u32) -> bool {
+        let (np, nq) = (&self.tree.nodes[p as usize], &self.tree.nodes[q as usize]);
+        let inside = |range: (u32, u32), pos: u32| pos >= range.0 && pos < range.1;
+        !self.visibility.maybe_blocked(
+            np.centre,
+            nq.centre,
+            np.radius.max(nq.radius),
+            &|polygon| {
+                let pos = self.tree.leaf_position[polygon];
+                inside(np.leaves, pos) || inside(nq.leaves, pos)
+            },
+        )
+    }
+
+    /// Oriented cluster ← polygon: the Lambert vector Γ(x → q) at the cluster's sample
+    /// points (member i receives B_q Γ · n_i), with visibility from each point to the
+    /// source's probes.
+    fn cluster_polygon(&self, p: u32, q: u32) -> Estimate {
+        let np = &self.tree.nodes[p as usize];
+        let clear = self.clear(p, q);
+        let count = self.options.cluster_samples * if clear { 1 } else { 4 };
+        let samples = self.tree.sample_points(p, count);
+        let source = self.source(q);
+        let mut g = DVec3::ZERO;
+        let (mut lo, mut hi) = (f64::INFINITY, 0.0f64);
+        let weight = 1.0 / samples.len().max(1) as f64;
+        for &(x, n) in &samples {
+            let gamma = lambert_vector(x, &source.vertices);
+            let seen = if clear {
+                1.0
+            } else {
+                self.visible_fraction(&[(x, 1.0)], n, source)
+            };
+            let value = gamma.dot(np.axis) * seen;
+            lo = lo.min(value);
+            hi = hi.max(value);
+            g += gamma * (seen * weight);
+        }
+        Estimate {
+            transfer: Some(Transfer::ToCluster(g.as_vec3().to_array())),
+            delta: (hi - lo).max(0.0),
+            source_dominates: false,
+            must_open_p: false,
+            must_open_q: false,
+        }
+    }
+
+    /// Links with an oriented cluster at one or both ends, from sample point pairs: per pair
+    /// (x_k receiving, y_j emitting, u = (y_j − x_k)/r), the irradiance per unit source
+    /// radiosity, with visibility by one ray.
+    fn sampled(&self, p: u32, q: u32, receiver: End, source_end: End) -> Estimate {
+        let (np, nq) = (&self.tree.nodes[p as usize], &self.tree.nodes[q as usize]);
+        let clear = self.clear(p, q);
+        let count = self.options.cluster_samples * if clear { 1 } else { 2 };
+        let xs = self.tree.sample_points(p, count);
+        let ys = self.tree.sample_points(q, count);
+        let pairs = (xs.len() * ys.len()).max(1) as f64;
+        let (mut lo, mut hi) = (f64::INFINITY, 0.0f64);
+        let mut vector = DVec3::ZERO;
+        let mut tensor = [0.0f64; 6];
+        for &(x, nx) in &xs {
+            for &(y, ny) in &ys {
+                let d = y - x;
+                let r2 = d.length_squared();
+                if r2 <= 0.0 {
+                    continue;
+                }
+                let u = d / r2.sqrt();
+                let visible = if clear || self.visibility.visible(x, nx, y, ny) {
+                    1.0
+                } else {
+                    0.0
+                };
+                let k = visible / (PI * r2);
+                // Irradiance per unit radiosity of the whole source, at the receiver's axis.
+                let cos_r = np.axis.dot(u).max(0.0);
+                let cos_s = nq.vector_area.dot(-u).max(0.0);
+                let value = k * cos_r * cos_s;
+                lo = lo.min(value);
+                hi = hi.max(value);
+                match receiver {
+                    End::Polygon => {
+                        // g = −u (n_p·u) / (π r²): H = M_q · g.
+                        vector += -u * (np.axis.dot(u) * k / pairs);
+                    }
+                    End::Oriented => {
+                        // T = −u uᵀ / (π r²): e = T M_q.
+                        let t = -k / pairs;
+                        tensor[0] += t * u.x * u.x;
+                        tensor[1] += t * u.y * u.y;
+                        tensor[2] += t * u.z * u.z;
+                        tensor[3] += t * u.x * u.y;
+                        tensor[4] += t * u.x * u.z;
+                        tensor[5] += t * u.y * u.z;
+                    }
+                }
+            }
+        }
+        let _ = source_end;
+        let transfer = match receiver {
+            End::Polygon => Transfer::FromCluster(vector.as_vec3().to_array()),
+            End::Oriented => Transfer::Tensor(tensor.map(|t| t as f32)),
+        };
+        // The error per unit source radiosity: the spread of the pair values, in units of
+        // irradiance per unit radiosity (a form factor); plus the source's own
+        // non-uniformity (a cluster holding a lamp among dark surfaces emits from the lamp,
+        // not from where its area is), which opens the source.
+        let spread = if lo.is_finite() { hi - lo } else { 0.0 };
+        let mean_value = if lo.is_finite() { 0.5 * (hi + lo) } else { 0.0 };
+        let non_uniform = self.non_uniformity(q) * mean_value;
+        Estimate {
+            transfer: Some(transfer),
+            delta: spread + non_uniform,
+            source_dominates: non_uniform > spread,
+            must_open_p: false,
+            must_open_q: false,
+        }
+    }
+
+    /// A link with a wide (not oriented) cluster at an end: allowed only when an upper bound
+    /// of its transfer is below the threshold, as an isotropic exchange spread uniformly;
+    /// otherwise the wide cluster must open.
+    fn wide(&self, p: u32, q: u32, open_p: bool, open_q: bool) -> Estimate {
+        let (np, nq) = (&self.tree.nodes[p as usize], &self.tree.nodes[q as usize]);
+        let r = np.centre.distance(nq.centre);
+        let gap = r - np.radius - nq.radius;
+        let must = Estimate {
+            transfer: None,
+            delta: f64::INFINITY,
+            source_dominates: open_q && !open_p,
+            must_open_p: open_p,
+            must_open_q: open_q,
+        };
+        if gap <= 0.0 {
+            return must;
+        }
+        // Of the power leaving q, at most A_p/(π gap²) of it can reach p: the bound on the
+        // irradiance per unit source radiosity is A_q/(π gap²).
+        let bound = nq.area / (PI * gap * gap);
+        // Isotropic estimate (Sillion 1995): projected areas A/4 at both ends.
+        let xs = self.tree.sample_points(p, self.options.cluster_samples);
+        let ys = self.tree.sample_points(q, self.options.cluster_samples);
+        let mut seen = 0usize;
+        for (i, &(x, nx)) in xs.iter().enumerate() {
+            let (y, ny) = ys[i % ys.len().max(1)];
+            seen += usize::from(self.visibility.visible(x, nx, y, ny));
+        }
+        let v = seen as f64 / xs.len().max(1) as f64;
+        let c = nq.area / (16.0 * PI * r * r) * v;
+        Estimate {
+            transfer: Some(Transfer::Uniform(c as f32)),
+            delta: bound,
+            ..must
+        }
+    }
+
+    /// Pushes gathered irradiance down to the leaves: H at a polygon node includes e · n; a
+    /// leaf's irradiance is the sum over its ancestors. Returns H per mesh element.
+    fn push(&self, gathered: &[Gathered]) -> Vec<[f64; 3]> {
+        let mut down = vec![Gathered::default(); self.tree.nodes.len()];
+        for i in 0..self.tree.nodes.len() {
+            let n = &self.tree.nodes[i];
+            let mut d = if n.parent == NONE {
+                Gathered::default()
+            } else {
+                let parent = &self.tree.nodes[n.parent as usize];
+                let mut d = down[n.parent as usize];
+                // The parent's affine irradiance, evaluated at this node's centroid.
+                let offset = n.centre - parent.centre;
+                for c in 0..3 {
+                    d.h[c] += d.g[c].dot(offset);
+                }
+                d
+            };
+            for c in 0..3 {
+                d.h[c] += gathered[i].h[c];
+                d.g[c] += gathered[i].g[c];
+                d.e[c] += gathered[i].e[c];
+            }
+            if n.is_polygon() {
+                for c in 0..3 {
+                    d.h[c] += d.e[c].dot(n.axis);
+                    d.e[c] = DVec3::ZERO;
+                }
+            }
+            down[i] = d;
+        }
+        self.leaves.iter().map(|&l| down[l as usize].h).collect()
+    }
+
+    /// Rebuilds the leaf mesh: every input polygon's leaves in scene order, one patch per
+    /// input polygon, vertices welded per polygon (children share their parents' exact edge
+    /// midpoints).
+    fn rebuild_mesh(&mut self, objects: &[String], _scene: &Scene) {
+        let mut mesh = Mesh {
+            objects: objects.to_vec(),
+            ..Mesh::default()
+        };
+        let mut leaves = Vec::new();
+        for (i, input) in self.tree.inputs.iter().enumerate() {
+            let first = mesh.elements.len() as u32;
+            let mut weld: HashMap<[u64; 3], u32> = HashMap::new();
+            let mut stack = vec![input.node];
+            while let Some(n) = stack.pop() {
+                let node = &self.tree.nodes[n as usize];
+                if node.child_count > 0 {
+                    stack.extend(node.children().rev());
+                    continue;
+                }
+                let corners = self
+                    .tree
+                    .polygon(n)
+                    .iter()
+                    .map(|p| {
+                        let key = [p.x.to_bits(), p.y.to_bits(), p.z.to_bits()];
+                        *weld.entry(key).or_insert_with(|| {
+                            mesh.vertices.push(*p);
+                            (mesh.vertices.len() - 1) as u32
+                        })
+                    })
+                    .collect();
+                mesh.elements.push(Element {
+                    surface: i as u32,
+                    patch: PatchId(i as u32),
+                    corners,
+                    centre: node.centre,
+                    normal: node.axis,
+                    area: node.area,
+                    parent: None,
+                    depth: node.depth.min(u8::MAX as u16) as u8,
+                });
+                leaves.push(n);
+            }
+            let outline = Polygon::new_unchecked(self.tree.polygon(input.node).to_vec());
+            mesh.patches.push(Patch {
+                surface: i as u32,
+                polygon: outline.clone(),
+                elements: first..mesh.elements.len() as u32,
+            });
+            mesh.surfaces.push(SurfaceData {
+                object: input.object,
+                scene_surface: input.surface,
+                reflectance: input.reflectance,
+                exitance: input.exitance,
+            });
+            mesh.surface_polygons.push(outline);
+        }
+        self.mesh = mesh;
+        self.leaves = leaves;
+    }
+
+    /// After [`Hierarchical::refine`]: the leaf mesh of the refined hierarchy and, for each of
+    /// its elements, the radiosity to start from (the old leaf's or its ancestor's value).
+    pub fn remesh(&mut self, scene: &Scene) -> Vec<[f64; 3]> {
+        let objects = self.mesh.objects.clone();
+        self.rebuild_mesh(&objects, scene);
+        self.leaves
+            .iter()
+            .map(|&l| self.state[l as usize].b)
+            .collect()
+    }
+
+    /// Links by kind: polygon, from cluster, to cluster, tensor, uniform.
+    pub fn link_kinds(&self) -> [usize; 5] {
+        let mut k = [0; 5];
+        for l in self.links.iter().flatten() {
+            k[match l.transfer {
+                Transfer::Polygon { .. } => 0,
+                Transfer::FromCluster(_) => 1,
+                Transfer::ToCluster(_) => 2,
+                Transfer::Tensor(_) => 3,
+                Transfer::Uniform(_) => 4,
+            }] += 1;
+        }
+        k
+    }
+
+    /// Prints the links with a cluster end (debugging aid).
+    pub fn debug_cluster_links(&self) {
+        let names = |n: u32| -> Vec<String> {
+            let node = &self.tree.nodes[n as usize];
+            (node.leaves.0..node.leaves.1)
+                .map(|i| {
+                    let input = self.tree.leaf_order[i as usize] as usize;
+                    self.mesh.objects[self.tree.inputs[input].object as usize].clone()
+                })
+                .collect()
+        };
+        for (p, links) in self.links.iter().enumerate() {
+            for l in links {
+                if !matches!(l.transfer, Transfer::Polygon { .. }) {
+                    eprintln!("  {:?} <- {:?}: {:?}", names(p as u32), names(l.source), l.transfer);
+                }
+            }
+        }
+    }
+
+    /// Counts of nodes and leaves.
+    pub fn node_count(&self) -> usize {
+        self.tree.nodes.len()
+    }
+}
+
+/// Which kind of end a sampled link has.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum End {
+    Polygon,
+    Oriented,
+}
+
+/// A link's transfer (if it can be evaluated) and its error coefficient.
+struct Estimate {
+    transfer: Option<Transfer>,
+    delta: f64,
+    source_dominates: bool,
+    must_open_p: bool,
+    must_open_q: bool,
+}
+
+impl Estimate {
+    fn zero() -> Self {
+        Self {
+            transfer: Some(Transfer::Polygon {
+                f: 0.0,
+                gradient: [0.0; 3],
+            }),
+            delta: 0.0,
+            source_dominates: false,
+            must_open_p: false,
+            must_open_q: false,
+        }
+    }
+}
+
+/// Least-squares affine fit f(x) ≈ f̄ + g · (x − x̄) to point values over a planar receiver
+/// with unit normal `normal` (weights summing to 1; x̄ the weighted mean point, so the
+/// constant is the weighted mean f̄ and the fit keeps the receiver's total). Returns the
+/// gradient g (in the plane, m⁻¹) and the largest |f_k − fit(x_k)|.
+fn affine_fit(points: &[(DVec3, f64)], values: &[f64], normal: DVec3) -> (DVec3, f64) {
+    let mean: f64 = points.iter().zip(values).map(|((_, w), f)| w * f).sum();
+    if points.len() < 3 {
+        let misfit = values.iter().map(|f| (f - mean).abs()).fold(0.0, f64::max);
+        return (DVec3::ZERO, misfit);
+    }
+    let centre: DVec3 = points.iter().map(|(x, w)| *x * *w).sum();
+    let (t, b) = normal.any_orthonormal_pair();
+    let (mut stt, mut stb, mut sbb, mut sft, mut sfb) = (0.0, 0.0, 0.0, 0.0, 0.0);
+    for ((x, w), f) in points.iter().zip(values) {
+        let d = *x - centre;
+        let (u, v) = (d.dot(t), d.dot(b));
+        stt += w * u * u;
+        stb += w * u * v;
+        sbb += w * v * v;
+        sft += w * (f - mean) * u;
+        sfb += w * (f - mean) * v;
+    }
+    let det = stt * sbb - stb * stb;
+    let gradient = if det > 1e-30 * (stt * sbb).max(f64::MIN_POSITIVE) {
+        let gu = (sft * sbb - sfb * stb) / det;
+        let gv = (sfb * stt - sft * stb) / det;
+        t * gu + b * gv
+    } else {
+        DVec3::ZERO
+    };
+    let misfit = points
+        .iter()
+        .zip(values)
+        .map(|((x, _), f)| (f - mean - gradient.dot(*x - centre)).abs())
+        .fold(0.0, f64::max);
+    (gradient, misfit)
+}
+
+/// Lambert's contour formula in vector form: Γ(x → q) with F_{dA(x, n) → q} = n · Γ for
+/// every normal n whose hemisphere holds all of q (Baum, Rushmeier & Winget 1989, eq. 1):
+/// Γ = −(1/2π) Σ_k γ_k · (r_k × r_{k+1})/|r_k × r_{k+1}|, r_k = v_k − x.
+pub fn lambert_vector(x: DVec3, vertices: &[DVec3]) -> DVec3 {
+    let count = vertices.len();
+    let mut sum = DVec3::ZERO;
+    let mut a = vertices[count - 1] - x;
+    for v in vertices {
+        let b = *v - x;
+        let c = a.cross(b);
+        let s = c.length();
+        if s > 0.0 {
+            sum += c * (s.atan2(a.dot(b)) / s);
+        }
+        a = b;
+    }
+    -sum / (2.0 * PI)
+}
+
+impl Coupling for Hierarchical {
+    fn name(&self) -> &'static str {
+        "hierarchical"
+    }
+
+    fn mesh(&self) -> &Mesh {
+        &self.mesh
+    }
+
+    /// Pull B up, gather over every link, push irradiance down.
+    fn gather(&self, radiosity: &[[f64; 3]]) -> Vec<[f64; 3]> {
+        let state = pull_state(&self.tree, &self.leaves, radiosity);
+        let gathered = gather_with(&self.links, &state);
+        self.push(&gathered)
+    }
+
+    fn sources(&self) -> usize {
+        0
+    }
+
+    fn source_elements(&self, _source: usize) -> Range<u32> {
+        0..0
+    }
+
+    fn shoot(&self, _source: usize, _shot: &[[f64; 3]], _receive: &mut dyn FnMut(usize, [f64; 3])) {}
+
+    fn memory_bytes(&self) -> u64 {
+        self.bytes()
+    }
+
+    fn form_factor_seconds(&self) -> f64 {
+        self.form_factor_seconds
+    }
+}
+
+/// The pulled state for leaf radiosities `leaf_b`: area-weighted mean radiosity, vector
+/// exitance and largest leaf radiosity at every node (children have larger indices than
+/// their parents, so a reverse sweep pulls bottom-up).
+fn pull_state(tree: &Tree, leaves: &[u32], leaf_b: &[[f64; 3]]) -> Vec<State> {
+    let mut state = vec![State::default(); tree.nodes.len()];
+    for (e, &node) in leaves.iter().enumerate() {
+        let n = &tree.nodes[node as usize];
+        let b = leaf_b[e];
+        state[node as usize] = State {
+            b,
+            b_max: b[0].max(b[1]).max(b[2]),
+            m: b.map(|x| n.vector_area * x),
+            h: 0.0,
+        };
+    }
+    for i in (0..tree.nodes.len()).rev() {
+        let n = &tree.nodes[i];
+        if n.child_count == 0 {
+            continue;
+        }
+        let mut s = State::default();
+        for c in n.children() {
+            let cs = &state[c as usize];
+            let a = tree.nodes[c as usize].area;
+            for k in 0..3 {
+                s.b[k] += cs.b[k] * a;
+                s.m[k] += cs.m[k];
+            }
+            s.b_max = s.b_max.max(cs.b_max);
+        }
+        if n.area > 0.0 {
+            s.b = s.b.map(|x| x / n.area);
+        }
+        state[i] = s;
+    }
+    state
+}
+
+/// Gathers over `links` from `state`.
+fn gather_with(links: &[Vec<Link>], state: &[State]) -> Vec<Gathered> {
+    links
+        .par_iter()
+        .map(|links| {
+            let mut out = Gathered::default();
+            for l in links {
+                let s = &state[l.source as usize];
+                match l.transfer {
+                    Transfer::Polygon { f, gradient } => {
+                        let g = DVec3::from_array(gradient.map(f64::from));
+                        for c in 0..3 {
+                            out.h[c] += f as f64 * s.b[c];
+                            out.g[c] += g * s.b[c];
+                        }
+                    }
+                    Transfer::Uniform(f) => {
+                        for c in 0..3 {
+                            out.h[c] += f as f64 * s.b[c];
+                        }
+                    }
+                    Transfer::FromCluster(g) => {
+                        let g = DVec3::from_array(g.map(f64::from));
+                        for c in 0..3 {
+                            out.h[c] += g.dot(s.m[c]);
+                        }
+                    }
+                    Transfer::ToCluster(g) => {
+                        let g = DVec3::from_array(g.map(f64::from));
+                        for c in 0..3 {
+                            out.e[c] += g * s.b[c];
+                        }
+                    }
+                    Transfer::Tensor(t) => {
+                        let t = t.map(f64::from);
+                        for c in 0..3 {
+                            let m = s.m[c];
+                            out.e[c] += DVec3::new(
+                                t[0] * m.x + t[3] * m.y + t[4] * m.z,
+                                t[3] * m.x + t[1] * m.y + t[5] * m.z,
+                                t[4] * m.x + t[5] * m.y + t[2] * m.z,
+                            );
+                        }
+                    }
+                }
+            }
+            out
+        })
+        .collect()
+}
+
+/// What one node gathered over its links: irradiance at its centroid h and its gradient g
+/// (polygon receivers), and vector irradiance e (cluster receivers), per channel.
+#[derive(Debug, Clone, Copy, Default)]
+struct Gathered {
+    h: [f64; 3],
+    g: [DVec3; 3],
+    e: [DVec3; 3],
+}
+
+impl Hierarchical {
+    /// Sets the per-node state from leaf radiosities and irradiances (W·m⁻²), for the
+    /// oracle of the next refinement.
+    pub fn set_solution(&mut self, leaf_b: &[[f64; 3]], leaf_h: &[[f64; 3]]) {
+        self.state = pull_state(&self.tree, &self.leaves, leaf_b);
+        // Irradiance, area-averaged up the tree.
+        for (e, &node) in self.leaves.iter().enumerate() {
+            let h = leaf_h[e];
+            self.state[node as usize].h = h[0].max(h[1]).max(h[2]);
+        }
+        for i in (0..self.tree.nodes.len()).rev() {
+            let n = &self.tree.nodes[i];
+            if n.child_count == 0 || n.area <= 0.0 {
+                continue;
+            }
+            let sum: f64 = n
+                .children()
+                .map(|c| self.state[c as usize].h * self.tree.nodes[c as usize].area)
+                .sum();
+            self.state[i].h = sum / n.area;
+        }
+        let scene_mean = self.state[0].h;
+        self.dark_floor = DARK_FLOOR
+            * scene_mean.max(self.emitted / self.total_area.max(f64::MIN_POSITIVE));
+    }
+}
+
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::{Material, MaterialId, Origin, Surface};
+
+    /// The unit cube with inward-facing faces, every face emitting E = 1 W·m⁻² and ρ = 0.5.
+    fn furnace() -> Scene {
+        let faces: [[[f64; 3]; 4]; 6] = [
+            [[0., 0., 1.], [1., 0., 1.], [1., 0., 0.], [0., 0., 0.]],
+            [[0., 1., 0.], [1., 1., 0.], [1., 1., 1.], [0., 1., 1.]],
+            [[0., 0., 0.], [0., 1., 0.], [0., 1., 1.], [0., 0., 1.]],
+            [[1., 0., 1.], [1., 1., 1.], [1., 1., 0.], [1., 0., 0.]],
+            [[0., 0., 0.], [1., 0., 0.], [1., 1., 0.], [0., 1., 0.]],
+            [[0., 1., 1.], [1., 1., 1.], [1., 0., 1.], [0., 0., 1.]],
+        ];
+        Scene {
+            name: "furnace".into(),
+            materials: vec![Material::new("m", [0.5; 3], [1.0 / PI; 3])],
+            surfaces: faces
+                .iter()
+                .enumerate()
+                .map(|(i, f)| Surface {
+                    object: format!("f{i}"),
+                    group: String::new(),
+                    material: MaterialId(0),
+                    polygon: Polygon::new(f.iter().map(|p| DVec3::from_array(*p)).collect())
+                        .unwrap(),
+                    origin: Origin::default(),
+                })
+                .collect(),
+            lights: Vec::new(),
+            camera: None,
+        }
+    }
+
+    #[test]
+    fn links_of_a_closed_box_close() {
+        let scene = furnace();
+        let mut h = Hierarchical::new(
+            &scene,
+            crate::formfactor::FormFactorMethod::Raycast.kernel(),
+            HierarchicalOptions::default(),
+        )
+        .unwrap();
+        let ones = vec![[1.0; 3]; h.mesh().elements.len()];
+        h.set_solution(&ones, &ones);
+        h.refine(4e-3);
+        h.remesh(&scene);
+        let ones = vec![[1.0; 3]; h.mesh().elements.len()];
+        let got = h.gather(&ones);
+        let (mut lo, mut hi, mut mean, mut area) = (f64::INFINITY, 0.0f64, 0.0, 0.0);
+        for (e, g) in h.mesh().elements.iter().zip(&got) {
+            lo = lo.min(g[0]);
+            hi = hi.max(g[0]);
+            mean += g[0] * e.area;
+            area += e.area;
+        }
+        eprintln!("closure: min {lo} max {hi} mean {}", mean / area);
+        let max_dev = got
+            .iter()
+            .map(|g| (g[0] - 1.0).abs())
+            .fold(0.0, f64::max);
+        let _ = max_dev;
+        assert!((mean / area - 1.0).abs() < 1e-4);
+    }
+}

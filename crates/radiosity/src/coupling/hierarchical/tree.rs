@@ -1,0 +1,570 @@
+//! The hierarchy of hierarchical radiosity: input polygons are the leaves of a binary tree
+//! of clusters (a bounding volume hierarchy built over them), and every polygon refines on
+//! demand into sub-elements (four for triangles and quads, two for larger convex polygons).
+//!
+//! Nodes live in one arena; children are contiguous. A node's geometry summary — area,
+//! vector area Σ A·n, centroid, bounding sphere, box, normal cone — serves the link oracle.
+
+use crate::geometry::{newell, Polygon};
+use glam::DVec3;
+
+/// No node.
+pub const NONE: u32 = u32::MAX;
+
+/// One input polygon (a scene surface) with the data the solver needs.
+#[derive(Debug, Clone)]
+pub struct InputPolygon {
+    /// The scene surface it is.
+    pub surface: u32,
+    /// Object index (into the scene's object names).
+    pub object: u32,
+    /// Reflectance ρ per channel.
+    pub reflectance: [f64; 3],
+    /// Emitted exitance E = π·L_e per channel, W·m⁻².
+    pub exitance: [f64; 3],
+    /// Its node.
+    pub node: u32,
+}
+
+/// What a node is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Kind {
+    /// A group of input polygons (a node of the cluster tree).
+    Cluster,
+    /// An input polygon or a piece of one; `input` indexes [`Tree::inputs`].
+    Polygon {
+        /// The input polygon it is (part of).
+        input: u32,
+    },
+}
+
+/// A node of the hierarchy.
+#[derive(Debug, Clone)]
+pub struct Node {
+    /// Parent node, or [`NONE`] for the root.
+    pub parent: u32,
+    /// First child; children are `first_child..first_child + child_count`.
+    pub first_child: u32,
+    /// Number of children (0 for a leaf).
+    pub child_count: u32,
+    /// Cluster or polygon.
+    pub kind: Kind,
+    /// Polygon nodes: range of their vertices in [`Tree::vertices`].
+    pub vertex_start: u32,
+    /// Number of vertices (0 for clusters).
+    pub vertex_count: u32,
+    /// Range of input polygons under the node, in [`Tree::leaf_order`] positions.
+    pub leaves: (u32, u32),
+    /// Area, m².
+    pub area: f64,
+    /// Σ A_i n_i over the node's polygons, m².
+    pub vector_area: DVec3,
+    /// Area centroid, m.
+    pub centre: DVec3,
+    /// Radius of a sphere about `centre` holding the node, m.
+    pub radius: f64,
+    /// Unit axis of the normal cone (the polygon's normal for polygon nodes).
+    pub axis: DVec3,
+    /// Cosine of the normal cone's half-angle: 1 for a polygon, −1 when the normals span
+    /// more than a hemisphere.
+    pub cone_cos: f64,
+    /// Subdivision depth below the input polygon (0 for clusters and input polygons).
+    pub depth: u16,
+}
+
+impl Node {
+    /// Whether this is a polygon (or piece of one).
+    pub fn is_polygon(&self) -> bool {
+        matches!(self.kind, Kind::Polygon { .. })
+    }
+
+    /// Children, as a range of node indices.
+    pub fn children(&self) -> std::ops::Range<u32> {
+        self.first_child..self.first_child + self.child_count
+    }
+}
+
+/// The hierarchy: input polygons, the cluster tree over them, and their sub-elements.
+#[derive(Debug, Clone, Default)]
+pub struct Tree {
+    /// Input polygons, in scene order.
+    pub inputs: Vec<InputPolygon>,
+    /// Every node; node 0 is the root.
+    pub nodes: Vec<Node>,
+    /// Vertices of polygon nodes, m.
+    pub vertices: Vec<DVec3>,
+    /// Input polygon indices in the order of the cluster tree's leaves.
+    pub leaf_order: Vec<u32>,
+    /// Prefix sums of input polygon areas in leaf order (m²), length `inputs + 1`.
+    pub area_prefix: Vec<f64>,
+    /// Position of each input polygon in `leaf_order`.
+    pub leaf_position: Vec<u32>,
+}
+
+/// Leaves per cluster-tree leaf: one input polygon each, so links can stop at any polygon.
+const BINS: usize = 16;
+/// Weight of the orientation term in the split cost: a child whose normals disagree
+/// (|Σ A n| / Σ A small) costs up to 1 + λ times as much as a flat one.
+const ORIENTATION_WEIGHT: f64 = 2.0;
+
+impl Tree {
+    /// The vertices of a polygon node.
+    pub fn polygon(&self, node: u32) -> &[DVec3] {
+        let n = &self.nodes[node as usize];
+        &self.vertices[n.vertex_start as usize..(n.vertex_start + n.vertex_count) as usize]
+    }
+
+    /// Builds the cluster tree over `polygons` (scene surfaces with their data): a binary
+    /// tree, top down, each split the cheapest of binned surface-area splits along the three
+    /// axes and one split by orientation, with cost Σ_c SA(c)/SA · n_c · (1 + λ(1 − |N_c|/A_c))
+    /// (N the vector area, λ = [`ORIENTATION_WEIGHT`]), so that opposite walls and the faces of
+    /// a box end up in different subtrees and most clusters have narrow normal cones.
+    pub fn build(polygons: Vec<(Polygon, InputPolygon)>) -> Tree {
+        let mut tree = Tree::default();
+        let count = polygons.len();
+        #[derive(Clone, Copy)]
+        struct Item {
+            input: u32,
+            centroid: DVec3,
+            lo: DVec3,
+            hi: DVec3,
+            area: f64,
+            normal: DVec3,
+        }
+        let mut items: Vec<Item> = Vec::with_capacity(count);
+        let mut outlines: Vec<Polygon> = Vec::with_capacity(count);
+        for (i, (poly, input)) in polygons.into_iter().enumerate() {
+            let (lo, hi) = poly.bounds();
+            items.push(Item {
+                input: i as u32,
+                centroid: poly.centroid(),
+                lo,
+                hi,
+                area: poly.area(),
+                normal: poly.normal(),
+            });
+            tree.inputs.push(input);
+            outlines.push(poly);
+        }
+        if count == 0 {
+            return tree;
+        }
+        // Build top-down with an explicit stack: (items range, parent, slot for this node).
+        tree.nodes.push(placeholder());
+        let mut stack: Vec<(usize, usize, u32)> = vec![(0, count, 0)];
+        while let Some((start, end, index)) = stack.pop() {
+            let slice = &mut items[start..end];
+            if slice.len() == 1 {
+                let item = &slice[0];
+                let poly = &outlines[item.input as usize];
+                let parent = tree.nodes[index as usize].parent;
+                let node = tree.polygon_node(poly.vertices(), item.input, 0, parent);
+                tree.nodes[index as usize] = Node {
+                    leaves: (start as u32, end as u32),
+                    ..node
+                };
+                tree.inputs[item.input as usize].node = index;
+                continue;
+            }
+            let split = best_split(slice, |it| (it.centroid, it.lo, it.hi, it.area, it.normal));
+            let mid = start + split;
+            let first = tree.nodes.len() as u32;
+            tree.nodes.push(placeholder());
+            tree.nodes.push(placeholder());
+            tree.nodes[index as usize] = Node {
+                parent: tree.nodes[index as usize].parent,
+                first_child: first,
+                child_count: 2,
+                leaves: (start as u32, end as u32),
+                ..placeholder()
+            };
+            tree.nodes[first as usize].parent = index;
+            tree.nodes[first as usize + 1].parent = index;
+            stack.push((mid, end, first + 1));
+            stack.push((start, mid, first));
+        }
+        tree.leaf_order = items.iter().map(|it| it.input).collect();
+        tree.leaf_position = vec![0; count];
+        for (pos, &input) in tree.leaf_order.iter().enumerate() {
+            tree.leaf_position[input as usize] = pos as u32;
+        }
+        tree.area_prefix = Vec::with_capacity(count + 1);
+        let mut sum = 0.0;
+        tree.area_prefix.push(0.0);
+        for it in &items {
+            sum += it.area;
+            tree.area_prefix.push(sum);
+        }
+        // Parents' summaries, bottom up (children always have larger indices).
+        for i in (0..tree.nodes.len()).rev() {
+            if tree.nodes[i].kind == Kind::Cluster {
+                let parent = tree.nodes[i].parent;
+                tree.summarise_cluster(i);
+                tree.nodes[i].parent = parent;
+            }
+        }
+        tree
+    }
+
+    /// A polygon node for `vertices` (not yet in the arena).
+    fn polygon_node(&mut self, vertices: &[DVec3], input: u32, depth: u16, parent: u32) -> Node {
+        let start = self.vertices.len() as u32;
+        self.vertices.extend_from_slice(vertices);
+        let (normal, area) = newell(vertices);
+        let centre = crate::formfactor::kernel::polygon_centroid(vertices);
+        let radius = vertices
+            .iter()
+            .map(|v| v.distance(centre))
+            .fold(0.0, f64::max);
+        Node {
+            parent,
+            first_child: NONE,
+            child_count: 0,
+            kind: Kind::Polygon { input },
+            vertex_start: start,
+            vertex_count: vertices.len() as u32,
+            leaves: (0, 0),
+            area,
+            vector_area: normal * area,
+            centre,
+            radius,
+            axis: normal,
+            cone_cos: 1.0,
+            depth,
+        }
+    }
+
+    /// Sets a cluster's summary from its two children.
+    fn summarise_cluster(&mut self, i: usize) {
+        let children: Vec<Node> = self.nodes[i]
+            .children()
+            .map(|c| self.nodes[c as usize].clone())
+            .collect();
+        let area: f64 = children.iter().map(|c| c.area).sum();
+        let vector_area: DVec3 = children.iter().map(|c| c.vector_area).sum();
+        let centre = if area > 0.0 {
+            children.iter().map(|c| c.centre * c.area).sum::<DVec3>() / area
+        } else {
+            children.iter().map(|c| c.centre).sum::<DVec3>() / children.len() as f64
+        };
+        let radius = children
+            .iter()
+            .map(|c| c.centre.distance(centre) + c.radius)
+            .fold(0.0, f64::max);
+        // Normal cone: about the mean normal, wide enough to hold every child's cone.
+        let axis = vector_area.try_normalize().unwrap_or(DVec3::Z);
+        let mut half: f64 = 0.0;
+        for c in &children {
+            let child_half = c.cone_cos.clamp(-1.0, 1.0).acos();
+            let between = axis.dot(c.axis).clamp(-1.0, 1.0).acos();
+            half = half.max(between + child_half);
+        }
+        let node = &mut self.nodes[i];
+        node.kind = Kind::Cluster;
+        node.area = area;
+        node.vector_area = vector_area;
+        node.centre = centre;
+        node.radius = radius;
+        node.axis = axis;
+        node.cone_cos = if half >= std::f64::consts::PI {
+            -1.0
+        } else {
+            half.cos()
+        };
+    }
+
+    /// Splits polygon node `node` into its children (if it has none yet) and returns them:
+    /// a triangle or quad into four by its order-2 lattice (edge midpoints), a larger convex
+    /// polygon into two by the line through its centroid across its longest extent.
+    pub fn subdivide(&mut self, node: u32) -> std::ops::Range<u32> {
+        let n = self.nodes[node as usize].clone();
+        if n.child_count > 0 {
+            return n.children();
+        }
+        let Kind::Polygon { input } = n.kind else {
+            return n.children();
+        };
+        let vertices = self.polygon(node).to_vec();
+        let pieces: Vec<Vec<DVec3>> = if vertices.len() <= 4 {
+            crate::geometry::subdivide(&vertices, 2)
+        } else {
+            split_in_two(&vertices)
+        };
+        let first = self.nodes.len() as u32;
+        for piece in &pieces {
+            let child = self.polygon_node(piece, input, n.depth + 1, node);
+            self.nodes.push(Node {
+                leaves: n.leaves,
+                ..child
+            });
+        }
+        let parent = &mut self.nodes[node as usize];
+        parent.first_child = first;
+        parent.child_count = pieces.len() as u32;
+        parent.children()
+    }
+
+    /// `count` points on the node's surfaces, spread by area, each with its surface's
+    /// normal: for a polygon its Gauss points of order ⌈√count⌉; for a cluster, point k lies
+    /// in the member polygon at cumulative-area fraction (k + ½)/count along the leaf order, at
+    /// the k-th point of a Halton sequence mapped uniformly onto that polygon — so the points
+    /// cover every member in proportion to its area, not only the members' centroids.
+    pub fn sample_points(&self, node: u32, count: usize) -> Vec<(DVec3, DVec3)> {
+        let n = &self.nodes[node as usize];
+        if n.is_polygon() {
+            let order = (count as f64).sqrt().ceil().max(1.0) as usize;
+            let mut pts = Vec::new();
+            crate::formfactor::quadrature::element_points(
+                self.polygon(node),
+                n.centre,
+                order,
+                &mut pts,
+            );
+            return pts.into_iter().map(|(p, _)| (p, n.axis)).collect();
+        }
+        let (lo, hi) = (n.leaves.0 as usize, n.leaves.1 as usize);
+        let (a0, a1) = (self.area_prefix[lo], self.area_prefix[hi]);
+        let mut out = Vec::with_capacity(count);
+        for k in 0..count {
+            let target = a0 + (a1 - a0) * (k as f64 + 0.5) / count as f64;
+            let pos = (self.area_prefix[lo..=hi].partition_point(|&s| s <= target) + lo)
+                .saturating_sub(1)
+                .clamp(lo, hi - 1);
+            let input = self.leaf_order[pos] as usize;
+            let leaf = self.inputs[input].node;
+            let point = point_in_polygon(
+                self.polygon(leaf),
+                halton(k as u32 + 1, 2),
+                halton(k as u32 + 1, 3),
+            );
+            out.push((point, self.nodes[leaf as usize].axis));
+        }
+        out
+    }
+}
+
+/// The radical inverse of `i` in base `b` (Halton's low-discrepancy sequence), in [0, 1).
+fn halton(mut i: u32, b: u32) -> f64 {
+    let (mut f, mut r) = (1.0, 0.0);
+    while i > 0 {
+        f /= b as f64;
+        r += f * (i % b) as f64;
+        i /= b;
+    }
+    r
+}
+
+/// The point of a convex polygon at (u, v) ∈ [0, 1)² under an area-preserving map: `u`
+/// chooses a fan triangle by area and, rescaled, with `v` a uniform point in it.
+fn point_in_polygon(vertices: &[DVec3], u: f64, v: f64) -> DVec3 {
+    let v0 = vertices[0];
+    let areas: Vec<f64> = vertices[1..]
+        .windows(2)
+        .map(|w| (w[0] - v0).cross(w[1] - v0).length())
+        .collect();
+    let total: f64 = areas.iter().sum();
+    if total <= 0.0 {
+        return v0;
+    }
+    let mut acc = 0.0;
+    let mut pick = areas.len() - 1;
+    let mut local = u;
+    for (i, a) in areas.iter().enumerate() {
+        if u * total < acc + a || i + 1 == areas.len() {
+            pick = i;
+            local = ((u * total - acc) / a.max(f64::MIN_POSITIVE)).clamp(0.0, 1.0);
+            break;
+        }
+        acc += a;
+    }
+    let (a, b) = (vertices[pick + 1], vertices[pick + 2]);
+    let s = local.sqrt();
+    v0 * (1.0 - s) + a * (s * (1.0 - v)) + b * (s * v)
+}
+
+fn placeholder() -> Node {
+    Node {
+        parent: NONE,
+        first_child: NONE,
+        child_count: 0,
+        kind: Kind::Cluster,
+        vertex_start: 0,
+        vertex_count: 0,
+        leaves: (0, 0),
+        area: 0.0,
+        vector_area: DVec3::ZERO,
+        centre: DVec3::ZERO,
+        radius: 0.0,
+        axis: DVec3::Z,
+        cone_cos: 1.0,
+        depth: 0,
+    }
+}
+
+/// Splits a convex polygon into two convex halves by the line through its centroid
+/// perpendicular to its longest vertex-to-vertex extent.
+fn split_in_two(vertices: &[DVec3]) -> Vec<Vec<DVec3>> {
+    let (normal, _) = newell(vertices);
+    let centre = crate::formfactor::kernel::polygon_centroid(vertices);
+    let mut dir = DVec3::X;
+    let mut best = -1.0;
+    for v in vertices {
+        let d = *v - centre;
+        if d.length_squared() > best {
+            best = d.length_squared();
+            dir = d;
+        }
+    }
+    // Cut across the longest direction, within the polygon's plane.
+    let cut = (dir - normal * dir.dot(normal)).normalize_or_zero();
+    let halves = [cut, -cut]
+        .into_iter()
+        .filter_map(|c| crate::geometry::clip_to_halfspace(vertices, centre, c))
+        .collect::<Vec<_>>();
+    if halves.len() == 2 {
+        halves
+    } else {
+        vec![vertices.to_vec()]
+    }
+}
+
+/// The split of `items` (reordered in place) of least cost: returns the size of the left
+/// part (1 ..= len − 1).
+fn best_split<T: Copy>(items: &mut [T], get: impl Fn(&T) -> (DVec3, DVec3, DVec3, f64, DVec3)) -> usize {
+    let n = items.len();
+    let (mut clo, mut chi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+    for it in items.iter() {
+        let c = get(it).0;
+        clo = clo.min(c);
+        chi = chi.max(c);
+    }
+    #[derive(Clone, Copy)]
+    struct Acc {
+        lo: DVec3,
+        hi: DVec3,
+        count: usize,
+        area: f64,
+        vector_area: DVec3,
+    }
+    let empty = Acc {
+        lo: DVec3::splat(f64::INFINITY),
+        hi: DVec3::splat(f64::NEG_INFINITY),
+        count: 0,
+        area: 0.0,
+        vector_area: DVec3::ZERO,
+    };
+    let add = |a: Acc, b: Acc| Acc {
+        lo: a.lo.min(b.lo),
+        hi: a.hi.max(b.hi),
+        count: a.count + b.count,
+        area: a.area + b.area,
+        vector_area: a.vector_area + b.vector_area,
+    };
+    let cost = |a: &Acc| {
+        if a.count == 0 {
+            return 0.0;
+        }
+        let e = (a.hi - a.lo).max(DVec3::ZERO);
+        let sa = e.x * e.y + e.y * e.z + e.z * e.x;
+        let flatness = if a.area > 0.0 {
+            a.vector_area.length() / a.area
+        } else {
+            1.0
+        };
+        sa.max(1e-300) * a.count as f64 * (1.0 + ORIENTATION_WEIGHT * (1.0 - flatness))
+    };
+    let item_acc = |it: &T| {
+        let (_, lo, hi, area, normal) = get(it);
+        Acc {
+            lo,
+            hi,
+            count: 1,
+            area,
+            vector_area: normal * area,
+        }
+    };
+    // Candidate: (cost, axis or 3 for orientation, bin boundary or sign axis).
+    let mut best: Option<(f64, usize, usize)> = None;
+    for axis in 0..3 {
+        let extent = chi[axis] - clo[axis];
+        if extent <= 0.0 {
+            continue;
+        }
+        let bin_of = |c: DVec3| {
+            (((c[axis] - clo[axis]) / extent * BINS as f64) as usize).min(BINS - 1)
+        };
+        let mut bins = [empty; BINS];
+        for it in items.iter() {
+            let b = bin_of(get(it).0);
+            bins[b] = add(bins[b], item_acc(it));
+        }
+        let mut right = [empty; BINS];
+        let mut acc = empty;
+        for b in (1..BINS).rev() {
+            acc = add(acc, bins[b]);
+            right[b] = acc;
+        }
+        let mut left = empty;
+        for b in 1..BINS {
+            left = add(left, bins[b - 1]);
+            if left.count == 0 || right[b].count == 0 {
+                continue;
+            }
+            let c = cost(&left) + cost(&right[b]);
+            if best.is_none_or(|(bc, _, _)| c < bc) {
+                best = Some((c, axis, b));
+            }
+        }
+    }
+    // Orientation split: by the sign of n·a along the axis of largest normal spread.
+    let mut spread = DVec3::ZERO;
+    for it in items.iter() {
+        spread += get(it).4.abs();
+    }
+    let a = if spread.x >= spread.y && spread.x >= spread.z {
+        0
+    } else if spread.y >= spread.z {
+        1
+    } else {
+        2
+    };
+    let (mut pos, mut neg) = (empty, empty);
+    for it in items.iter() {
+        if get(it).4[a] >= 0.0 {
+            pos = add(pos, item_acc(it));
+        } else {
+            neg = add(neg, item_acc(it));
+        }
+    }
+    if pos.count > 0 && neg.count > 0 {
+        let c = cost(&pos) + cost(&neg);
+        if best.is_none_or(|(bc, _, _)| c < bc) {
+            best = Some((c, 3, a));
+        }
+    }
+    let left = match best {
+        Some((_, 3, a)) => partition(items, |it| get(it).4[a] >= 0.0),
+        Some((_, axis, b)) => {
+            let extent = chi[axis] - clo[axis];
+            partition(items, |it| {
+                let c = get(it).0;
+                (((c[axis] - clo[axis]) / extent * BINS as f64) as usize).min(BINS - 1) < b
+            })
+        }
+        None => 0,
+    };
+    if left == 0 || left == n {
+        // All centroids equal and one orientation: halve by order (stable, deterministic).
+        n / 2
+    } else {
+        left
+    }
+}
+
+/// Moves the items for which `left` holds to the front (stable, O(n)); returns their count.
+fn partition<T: Copy>(items: &mut [T], left: impl Fn(&T) -> bool) -> usize {
+    let (l, r): (Vec<T>, Vec<T>) = items.iter().partition(|it| left(it));
+    items[..l.len()].copy_from_slice(&l);
+    items[l.len()..].copy_from_slice(&r);
+    l.len()
+}

@@ -1,0 +1,150 @@
+//! The hierarchical solver: refine the links of the hierarchical coupling, iterate, refine
+//! again with the radiosities now known, until the links are right for the final tolerance.
+//!
+//! Multigridding after Hanrahan, Salzman & Aupperle (1991) and Sillion & Drettakis (1995):
+//! the link error threshold starts at 16 ε and halves each stage down to ε; each stage
+//! refines every link whose error in power exceeds the stage's threshold (with the
+//! radiosities of the previous stage, starting from B = E, so the first stage links from the
+//! emitters), then runs Jacobi with push–pull from the previous radiosities. The last stage
+//! iterates to the solver tolerance.
+
+use super::{
+    exitance, iterate_from, reflect, Flow, Observer, SolveOptions, SolverKind, Solution, Step,
+    StepKind,
+};
+use crate::coupling::hierarchical::{Hierarchical, HierarchicalError, HierarchicalOptions};
+use crate::coupling::Coupling;
+use crate::formfactor::FormFactorMethod;
+use crate::mesh::Mesh;
+use crate::scene::Scene;
+
+/// What the hierarchical solve produced.
+pub struct HierarchicalSolution {
+    /// The leaves of the refined hierarchy.
+    pub mesh: Mesh,
+    /// Radiosity and irradiance per leaf.
+    pub solution: Solution,
+    /// Links at the end.
+    pub links: usize,
+    /// Nodes of the hierarchy at the end.
+    pub nodes: usize,
+    /// Whether refinement stopped at the memory limit.
+    pub capped: bool,
+    /// Links accepted although their error exceeded the threshold (minimum area reached).
+    pub forced: usize,
+}
+
+/// Stages of the threshold schedule: 16 ε, 8 ε, 4 ε, 2 ε, ε.
+const STAGES: u32 = 5;
+
+/// Solves `scene` hierarchically with the form-factor kernel of `method`.
+pub fn solve(
+    scene: &Scene,
+    method: FormFactorMethod,
+    hierarchy: HierarchicalOptions,
+    options: &SolveOptions,
+    observer: &mut dyn Observer,
+) -> Result<HierarchicalSolution, HierarchicalError> {
+    let mut h = Hierarchical::new(scene, method.kernel(), hierarchy)?;
+    let mut b = exitance(h.mesh());
+    // Before any solve: the emitters' radiosity, and as irradiance the mean the emitted
+    // power would give (the oracle's scale for every surface).
+    let guess = vec![[h.emitted_power() / h.mesh().elements.iter().map(|e| e.area).sum::<f64>(); 3]; b.len()];
+    h.set_solution(&b, &guess);
+    let mut solution = None;
+    let mut carried = Watch {
+        inner: observer,
+        offset: 0.0,
+        iterations: 0,
+        stopped: false,
+    };
+    for stage in (0..STAGES).rev() {
+        let epsilon = hierarchy.epsilon * f64::from(1u32 << stage);
+        h.refine(epsilon);
+        if std::env::var_os("RADIOSITY_DEBUG").is_some() {
+            eprintln!(
+                "stage ε = {epsilon:.1e}: {} nodes, {} links {:?}, {} forced",
+                h.node_count(),
+                h.link_count(),
+                h.link_kinds(),
+                h.forced
+            );
+            h.debug_cluster_links();
+        }
+        b = h.remesh(scene);
+        // Intermediate stages only need radiosities good enough for the next refinement.
+        let stage_options = SolveOptions {
+            tolerance: if stage == 0 {
+                options.tolerance
+            } else {
+                (options.tolerance * 10.0).min(0.05)
+            },
+            ..*options
+        };
+        let coupling = &h;
+        let mesh = coupling.mesh();
+        let s = iterate_from(
+            coupling,
+            b,
+            SolverKind::Hierarchical,
+            &stage_options,
+            &mut carried,
+            &mut |x| *x = reflect(mesh, &coupling.gather(x)),
+        );
+        carried.offset += s.stats.seconds;
+        carried.iterations += s.stats.iterations;
+        b = s.radiosity.clone();
+        h.set_solution(&b, &s.irradiance);
+        solution = Some(s);
+        if carried.stopped {
+            break;
+        }
+    }
+    let mut solution = solution.unwrap_or_else(|| {
+        super::solution_from(&h, exitance(h.mesh()), super::SolveStats {
+            solver: SolverKind::Hierarchical,
+            iterations: 0,
+            residual: f64::INFINITY,
+            seconds: 0.0,
+            form_factor_seconds: 0.0,
+        })
+    });
+    solution.stats.solver = SolverKind::Hierarchical;
+    solution.stats.iterations = carried.iterations;
+    solution.stats.form_factor_seconds = h.form_factor_seconds();
+    solution.stats.seconds = carried.offset + h.form_factor_seconds();
+    Ok(HierarchicalSolution {
+        links: h.link_count(),
+        nodes: h.node_count(),
+        capped: h.capped,
+        forced: h.forced,
+        mesh: h.mesh().clone(),
+        solution,
+    })
+}
+
+/// Passes steps on with times and counts carried across the stages.
+struct Watch<'o> {
+    inner: &'o mut dyn Observer,
+    offset: f64,
+    iterations: usize,
+    stopped: bool,
+}
+
+impl Observer for Watch<'_> {
+    fn step(&mut self, step: &Step<'_>) -> Flow {
+        let carried = Step {
+            index: step.index + self.iterations,
+            elapsed: step.elapsed + self.offset,
+            kind: if step.kind == StepKind::Start && self.iterations > 0 {
+                StepKind::Iteration
+            } else {
+                step.kind
+            },
+            ..*step
+        };
+        let flow = self.inner.step(&carried);
+        self.stopped |= flow == Flow::Stop;
+        flow
+    }
+}
