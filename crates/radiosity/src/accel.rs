@@ -402,8 +402,10 @@ impl Bvh {
                                 packet.v[v][2][lane],
                             )
                         });
-                        let (tmin, tmax) =
-                            (tri[0].min(tri[1]).min(tri[2]), tri[0].max(tri[1]).max(tri[2]));
+                        let (tmin, tmax) = (
+                            tri[0].min(tri[1]).min(tri[2]),
+                            tri[0].max(tri[1]).max(tri[2]),
+                        );
                         if near(tmin, tmax) && counts(ids[lane]) {
                             return true;
                         }

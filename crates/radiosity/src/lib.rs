@@ -32,6 +32,7 @@ pub mod geometry;
 pub mod io;
 pub mod light;
 pub mod mesh;
+pub mod photometry;
 pub mod pipeline;
 pub mod progress;
 pub mod render;
@@ -39,6 +40,7 @@ pub mod report;
 pub mod scene;
 pub mod settings;
 pub mod solve;
+pub mod units;
 
 pub use coupling::Coupling;
 pub use formfactor::FormFactorMethod;

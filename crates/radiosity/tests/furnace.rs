@@ -88,6 +88,7 @@ fn run_with(
             tolerance: tol,
             ..Default::default()
         },
+        ..Default::default()
     };
     let sol = solve_mesh(&mesh, &settings, &NoProgress, &mut NoObserver).unwrap();
     let report = Report::new("furnace", &mesh, &sol, method.name());

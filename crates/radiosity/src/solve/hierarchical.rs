@@ -9,7 +9,7 @@
 //! iterates to the solver tolerance.
 
 use super::{
-    exitance, iterate_from, reflect, Flow, Observer, SolveOptions, SolverKind, Solution, Step,
+    exitance, iterate_from, reflect, Flow, Observer, Solution, SolveOptions, SolverKind, Step,
     StepKind,
 };
 use crate::coupling::hierarchical::{Hierarchical, HierarchicalError, HierarchicalOptions};
@@ -49,7 +49,10 @@ pub fn solve(
     let mut b = exitance(h.mesh());
     // Before any solve: the emitters' radiosity, and as irradiance the mean the emitted
     // power would give (the oracle's scale for every surface).
-    let guess = vec![[h.emitted_power() / h.mesh().elements.iter().map(|e| e.area).sum::<f64>(); 3]; b.len()];
+    let guess = vec![
+        [h.emitted_power() / h.mesh().elements.iter().map(|e| e.area).sum::<f64>(); 3];
+        b.len()
+    ];
     h.set_solution(&b, &guess);
     let mut solution = None;
     let mut carried = Watch {
@@ -101,13 +104,17 @@ pub fn solve(
         }
     }
     let mut solution = solution.unwrap_or_else(|| {
-        super::solution_from(&h, exitance(h.mesh()), super::SolveStats {
-            solver: SolverKind::Hierarchical,
-            iterations: 0,
-            residual: f64::INFINITY,
-            seconds: 0.0,
-            form_factor_seconds: 0.0,
-        })
+        super::solution_from(
+            &h,
+            exitance(h.mesh()),
+            super::SolveStats {
+                solver: SolverKind::Hierarchical,
+                iterations: 0,
+                residual: f64::INFINITY,
+                seconds: 0.0,
+                form_factor_seconds: 0.0,
+            },
+        )
     });
     solution.stats.solver = SolverKind::Hierarchical;
     solution.stats.iterations = carried.iterations;

@@ -17,9 +17,9 @@
 
 pub mod direct;
 pub mod gauss_seidel;
+pub mod hierarchical;
 pub mod jacobi;
 pub mod observer;
-pub mod hierarchical;
 pub mod progressive;
 
 pub use observer::{Flow, NoObserver, Observer, Step, StepKind};
@@ -78,10 +78,17 @@ impl fmt::Display for SolverKind {
 impl FromStr for SolverKind {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, String> {
-        Self::ALL.iter().copied().find(|k| k.name() == s).ok_or_else(|| {
-            let names: Vec<_> = Self::ALL.iter().map(|k| k.name()).collect();
-            format!("unknown solver '{s}' (expected one of: {})", names.join(", "))
-        })
+        Self::ALL
+            .iter()
+            .copied()
+            .find(|k| k.name() == s)
+            .ok_or_else(|| {
+                let names: Vec<_> = Self::ALL.iter().map(|k| k.name()).collect();
+                format!(
+                    "unknown solver '{s}' (expected one of: {})",
+                    names.join(", ")
+                )
+            })
     }
 }
 
@@ -441,7 +448,11 @@ impl ErrorEstimate {
             sum += e.area * b[0].max(b[1]).max(b[2]);
             area += e.area;
         }
-        let floor = if area > 0.0 { DARK_FLOOR * sum / area } else { 0.0 };
+        let floor = if area > 0.0 {
+            DARK_FLOOR * sum / area
+        } else {
+            0.0
+        };
         let mut change: f64 = 0.0;
         for (x, y) in before.iter().zip(after) {
             let scale = y[0].max(y[1]).max(y[2]).max(floor);

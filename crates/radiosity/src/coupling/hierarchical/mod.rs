@@ -232,7 +232,12 @@ impl Hierarchical {
         let pieces: Vec<(usize, Polygon)> = if std::env::var_os("RADIOSITY_HR_SPLIT").is_some() {
             crate::mesh::split_at_contacts(scene)
         } else {
-            scene.surfaces.iter().enumerate().map(|(i, s)| (i, s.polygon.clone())).collect()
+            scene
+                .surfaces
+                .iter()
+                .enumerate()
+                .map(|(i, s)| (i, s.polygon.clone()))
+                .collect()
         };
         let inputs: Vec<(Polygon, InputPolygon)> = pieces
             .into_iter()
@@ -355,9 +360,7 @@ impl Hierarchical {
             return epsilon * self.emitted / n.area.max(f64::MIN_POSITIVE);
         }
         let h = match n.kind {
-            Kind::Polygon { input } => {
-                self.state[self.tree.inputs[input as usize].node as usize].h
-            }
+            Kind::Polygon { input } => self.state[self.tree.inputs[input as usize].node as usize].h,
             Kind::Cluster => self.state[p as usize].h,
         };
         epsilon * h.max(self.dark_floor)
@@ -505,7 +508,9 @@ impl Hierarchical {
                 // open); the source when its own non-uniformity dominates.
                 let choice = match (can_p, can_q) {
                     (true, true) => {
-                        if estimate.must_open_q || (estimate.source_dominates && !estimate.must_open_p) {
+                        if estimate.must_open_q
+                            || (estimate.source_dominates && !estimate.must_open_p)
+                        {
                             q
                         } else if estimate.must_open_p || np.radius >= nq.radius {
                             p
@@ -529,7 +534,10 @@ impl Hierarchical {
     /// Whether node `a` lies entirely behind polygon node `poly`'s plane (within 10⁻⁹ of
     /// the pair's size).
     fn behind(&self, a: u32, poly: u32) -> bool {
-        let (na, np) = (&self.tree.nodes[a as usize], &self.tree.nodes[poly as usize]);
+        let (na, np) = (
+            &self.tree.nodes[a as usize],
+            &self.tree.nodes[poly as usize],
+        );
         let origin = self.tree.polygon(poly)[0];
         let tol = 1e-9 * (na.radius + np.radius);
         if na.is_polygon() {
@@ -545,7 +553,10 @@ impl Hierarchical {
     /// Whether cluster `c` faces node `other` with all its members: its normal cone, widened
     /// by the angle the pair subtends, stays within 90° of the direction to `other`.
     fn oriented(&self, c: u32, other: u32) -> bool {
-        let (nc, no) = (&self.tree.nodes[c as usize], &self.tree.nodes[other as usize]);
+        let (nc, no) = (
+            &self.tree.nodes[c as usize],
+            &self.tree.nodes[other as usize],
+        );
         let d = no.centre - nc.centre;
         let r = d.length();
         if r <= nc.radius + no.radius || nc.cone_cos <= 0.0 {
@@ -559,7 +570,10 @@ impl Hierarchical {
 
     /// Whether node `a` lies entirely in front of polygon node `poly`'s plane.
     fn in_front(&self, a: u32, poly: u32) -> bool {
-        let (na, np) = (&self.tree.nodes[a as usize], &self.tree.nodes[poly as usize]);
+        let (na, np) = (
+            &self.tree.nodes[a as usize],
+            &self.tree.nodes[poly as usize],
+        );
         let origin = self.tree.polygon(poly)[0];
         (na.centre - origin).dot(np.axis) > na.radius
     }
@@ -687,8 +701,7 @@ impl Hierarchical {
                         continue;
                     }
                     let u = d / r2.sqrt();
-                    let weight =
-                        w * n.dot(u).max(0.0) * source.normal.dot(-u).max(0.0) * area / r2;
+                    let weight = w * n.dot(u).max(0.0) * source.normal.dot(-u).max(0.0) * area / r2;
                     if weight <= 0.0 {
                         continue;
                     }
@@ -732,15 +745,12 @@ impl Hierarchical {
     fn clear(&self, p: u32, q: u32) -> bool {
         let (np, nq) = (&self.tree.nodes[p as usize], &self.tree.nodes[q as usize]);
         let inside = |range: (u32, u32), pos: u32| pos >= range.0 && pos < range.1;
-        !self.visibility.maybe_blocked(
-            np.centre,
-            nq.centre,
-            np.radius.max(nq.radius),
-            &|polygon| {
+        !self
+            .visibility
+            .maybe_blocked(np.centre, nq.centre, np.radius.max(nq.radius), &|polygon| {
                 let pos = self.tree.leaf_position[polygon];
                 inside(np.leaves, pos) || inside(nq.leaves, pos)
-            },
-        )
+            })
     }
 
     /// Oriented cluster ← polygon: the Lambert vector Γ(x → q) at the cluster's sample
@@ -1020,7 +1030,12 @@ impl Hierarchical {
         for (p, links) in self.links.iter().enumerate() {
             for l in links {
                 if !matches!(l.transfer, Transfer::Polygon { .. }) {
-                    eprintln!("  {:?} <- {:?}: {:?}", names(p as u32), names(l.source), l.transfer);
+                    eprintln!(
+                        "  {:?} <- {:?}: {:?}",
+                        names(p as u32),
+                        names(l.source),
+                        l.transfer
+                    );
                 }
             }
         }
@@ -1144,7 +1159,8 @@ impl Coupling for Hierarchical {
         0..0
     }
 
-    fn shoot(&self, _source: usize, _shot: &[[f64; 3]], _receive: &mut dyn FnMut(usize, [f64; 3])) {}
+    fn shoot(&self, _source: usize, _shot: &[[f64; 3]], _receive: &mut dyn FnMut(usize, [f64; 3])) {
+    }
 
     fn memory_bytes(&self) -> u64 {
         self.bytes()
@@ -1275,11 +1291,10 @@ impl Hierarchical {
             self.state[i].h = sum / n.area;
         }
         let scene_mean = self.state[0].h;
-        self.dark_floor = DARK_FLOOR
-            * scene_mean.max(self.emitted / self.total_area.max(f64::MIN_POSITIVE));
+        self.dark_floor =
+            DARK_FLOOR * scene_mean.max(self.emitted / self.total_area.max(f64::MIN_POSITIVE));
     }
 }
-
 
 #[cfg(test)]
 mod tests {
@@ -1339,10 +1354,7 @@ mod tests {
             area += e.area;
         }
         eprintln!("closure: min {lo} max {hi} mean {}", mean / area);
-        let max_dev = got
-            .iter()
-            .map(|g| (g[0] - 1.0).abs())
-            .fold(0.0, f64::max);
+        let max_dev = got.iter().map(|g| (g[0] - 1.0).abs()).fold(0.0, f64::max);
         let _ = max_dev;
         assert!((mean / area - 1.0).abs() < 1e-4);
     }

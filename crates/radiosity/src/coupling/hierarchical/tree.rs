@@ -430,7 +430,10 @@ fn split_in_two(vertices: &[DVec3]) -> Vec<Vec<DVec3>> {
 
 /// The split of `items` (reordered in place) of least cost: returns the size of the left
 /// part (1 ..= len − 1).
-fn best_split<T: Copy>(items: &mut [T], get: impl Fn(&T) -> (DVec3, DVec3, DVec3, f64, DVec3)) -> usize {
+fn best_split<T: Copy>(
+    items: &mut [T],
+    get: impl Fn(&T) -> (DVec3, DVec3, DVec3, f64, DVec3),
+) -> usize {
     let n = items.len();
     let (mut clo, mut chi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
     for it in items.iter() {
@@ -490,9 +493,8 @@ fn best_split<T: Copy>(items: &mut [T], get: impl Fn(&T) -> (DVec3, DVec3, DVec3
         if extent <= 0.0 {
             continue;
         }
-        let bin_of = |c: DVec3| {
-            (((c[axis] - clo[axis]) / extent * BINS as f64) as usize).min(BINS - 1)
-        };
+        let bin_of =
+            |c: DVec3| (((c[axis] - clo[axis]) / extent * BINS as f64) as usize).min(BINS - 1);
         let mut bins = [empty; BINS];
         for it in items.iter() {
             let b = bin_of(get(it).0);
