@@ -24,7 +24,11 @@ impl Scale {
     /// The scale from 0 to the smallest "nice" number ≥ `max` whose step (1, 2 or 5 × 10ᵏ)
     /// gives 4 to 10 intervals; 0 to 1 for a non-positive or non-finite `max`.
     pub fn covering(max: f64) -> Self {
-        let max = if max.is_finite() && max > 0.0 { max } else { 1.0 };
+        let max = if max.is_finite() && max > 0.0 {
+            max
+        } else {
+            1.0
+        };
         let raw = max / 8.0;
         let magnitude = 10f64.powf(raw.log10().floor());
         let step = [1.0, 2.0, 5.0, 10.0]
@@ -145,7 +149,9 @@ pub fn grid_plot(grid: &GridResult, title: &str) -> Result<RgbImage, String> {
                 if a.is_nan() || b.is_nan() {
                     continue;
                 }
-                on |= levels.iter().any(|&l| (a - l) * (b - l) < 0.0 || (a == l && b != l));
+                on |= levels
+                    .iter()
+                    .any(|&l| (a - l) * (b - l) < 0.0 || (a == l && b != l));
             }
             if on {
                 img.put_pixel(margin + px, top + py, Rgb(INK));
@@ -234,15 +240,7 @@ fn draw_legend(
             INK,
         );
     }
-    crate::sequence::draw_text(
-        img,
-        font,
-        14.0,
-        x0 as f32,
-        y0 as f32 - 8.0,
-        unit,
-        INK,
-    );
+    crate::sequence::draw_text(img, font, 14.0, x0 as f32, y0 as f32 - 8.0, unit, INK);
 }
 
 /// A rendered false-colour image with a legend bar to its right (white background).

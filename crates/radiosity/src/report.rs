@@ -16,8 +16,8 @@
 
 use crate::light::{Distribution, Light};
 use crate::mesh::Mesh;
-use crate::units::{lux_from_irradiance, nits_from_radiance, LUMINOUS_EFFICACY};
 use crate::solve::Solution;
+use crate::units::{lux_from_irradiance, nits_from_radiance, LUMINOUS_EFFICACY};
 use serde::{Deserialize, Serialize};
 
 /// One object's line in the report.
