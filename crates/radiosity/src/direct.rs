@@ -95,7 +95,7 @@ pub fn polygon_irradiance(
         .windows(2)
         .map(|w| 0.5 * (w[0] - corners[0]).cross(w[1] - corners[0]).length())
         .sum();
-    if !(area > 0.0) {
+    if area.is_nan() || area <= 0.0 {
         return [0.0; 3];
     }
     let mut total = [0.0; 3];

@@ -37,8 +37,11 @@ fn quad(o: [f64; 3], u: [f64; 3], v: [f64; 3]) -> String {
     )
 }
 
-/// The six inward faces of a box of size `s` at the origin: (name, origin, u, v).
-fn faces(s: [f64; 3]) -> Vec<(&'static str, [f64; 3], [f64; 3], [f64; 3])> {
+/// A face: name, corner, edges u and v (normal u × v, pointing into the box).
+type Face = (&'static str, [f64; 3], [f64; 3], [f64; 3]);
+
+/// The six inward faces of a box of size `s` at the origin.
+fn faces(s: [f64; 3]) -> Vec<Face> {
     let [x, y, z] = s;
     vec![
         ("floor", [0., 0., 0.], [x, 0., 0.], [0., y, 0.]),

@@ -169,7 +169,7 @@ impl LightEntry {
         } else {
             "direction"
         };
-        if !(nadir.length() > 0.0) {
+        if nadir.length().is_nan() || nadir.length() <= 0.0 {
             return Err(fail(
                 nadir_key,
                 "the aiming direction is zero (a target at the light's position?)".into(),
@@ -217,7 +217,7 @@ impl LightEntry {
                 })?;
                 let table = crate::photometry::load(&dir.join(file))
                     .map_err(|e| fail("file", e.to_string()))?;
-                if !(table.flux() > 0.0) {
+                if table.flux().is_nan() || table.flux() <= 0.0 {
                     return Err(fail("file", format!("{file} emits no light")));
                 }
                 Distribution::Goniometric(Arc::new(table))
