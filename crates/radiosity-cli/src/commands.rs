@@ -25,6 +25,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Formfactor(args) => crate::cmd_formfactor::run(args),
         Command::Progressive(args) => crate::cmd_progressive::run(args),
         Command::Compare(args) => crate::cmd_compare::run(args),
+        Command::Measure(args) => crate::cmd_measure::run(args),
     }
 }
 
@@ -115,7 +116,8 @@ fn solve(args: SolveCmdArgs) -> Result<()> {
         &solved.mesh,
         &solved.solution,
         solved.form_factor.name(),
-    );
+    )
+    .with_lights(&scene.lights);
     if !args.solve.quiet {
         let t = &report.totals;
         let fmt = |p: [f64; 3]| format!("({:.4}, {:.4}, {:.4}) W", p[0], p[1], p[2]);
@@ -154,6 +156,9 @@ fn render(args: RenderArgs) -> Result<()> {
     } else {
         Shading::Smooth
     };
+    if let (Some(_), Some(out)) = (args.false_colour, &args.output) {
+        crate::cmd_falsecolour::check_png(out)?;
+    }
     let output_for = |name: &str| -> Result<PathBuf> {
         let output = args.output.clone().unwrap_or_else(|| default_output(name));
         radiosity::render::check_output(&output)?;
@@ -171,7 +176,10 @@ fn render(args: RenderArgs) -> Result<()> {
         let base = file.camera.map(Camera::from).unwrap_or_default();
         let vertices = file.vertices();
         let camera = radiosity::settings::camera(base, centre_of(&vertices), &args.view.camera())?;
-        let radiosity = file.display_radiosity(settings.render.ambient);
+        let radiosity = match args.false_colour {
+            Some(q) => crate::cmd_falsecolour::values(q, &file.radiosity, &file.irradiance),
+            None => file.display_radiosity(settings.render.ambient),
+        };
         (vertices, file.elements, radiosity, camera, output, settings)
     } else {
         let loaded = load_scene(args.scene.as_deref())?;
@@ -180,9 +188,16 @@ fn render(args: RenderArgs) -> Result<()> {
         let output = output_for(&scene.name)?;
         let camera = scene_camera(scene, &args.view)?;
         let solved = run_solve(scene, &settings, &args.solve)?;
-        let radiosity = solved
-            .solution
-            .display_radiosity(&solved.mesh, settings.render.ambient);
+        let radiosity = match args.false_colour {
+            Some(q) => crate::cmd_falsecolour::values(
+                q,
+                &solved.solution.radiosity,
+                &solved.solution.irradiance,
+            ),
+            None => solved
+                .solution
+                .display_radiosity(&solved.mesh, settings.render.ambient),
+        };
         let mesh = solved.mesh;
         (
             mesh.vertices,
@@ -193,6 +208,22 @@ fn render(args: RenderArgs) -> Result<()> {
             settings,
         )
     };
+    if let Some(quantity) = args.false_colour {
+        let shaded = Shaded {
+            vertices: &vertices,
+            elements: &elements,
+            radiosity: &radiosity,
+        };
+        return crate::cmd_falsecolour::render(
+            quantity,
+            &shaded,
+            &camera,
+            shading,
+            &render_options(&settings),
+            &output,
+            args.solve.quiet,
+        );
+    }
     let shaded = Shaded {
         vertices: &vertices,
         elements: &elements,
