@@ -112,3 +112,40 @@ fn one_and_two_threads_give_the_same_bits() {
         }
     }
 }
+
+#[test]
+fn luminaires_light_the_office_as_the_classic_solver_does() {
+    // The office example: four IES luminaires (no emitting polygons), so every watt reaches
+    // the surfaces through the first shot. Reference: Gauss–Seidel on a fine classic mesh
+    // (converged to 1e-6), an independent discretisation of the same equation.
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/office/office.json");
+    let scene = radiosity::io::scene_file::load_scene_file(&path)
+        .unwrap()
+        .scene;
+    let (_, ours) = solve(&scene, &hierarchical(0.02));
+    let mut classic = SolveSettings {
+        solve: SolveOptions {
+            solver: SolverKind::GaussSeidel,
+            tolerance: 1e-6,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    classic.mesh.elements = 4000;
+    let (_, reference) = solve(&scene, &classic);
+    for o in &reference.objects {
+        let h = ours.object(&o.name).unwrap().irradiance;
+        // Tolerance 2 %: ε = 0.02 per link, and the classic mesh's own discretisation error
+        // (measured on the floor grid at 0.75 m: 640.0 lx against 642.2 lx, 0.3 %).
+        for c in 0..3 {
+            let rel = (h[c] - o.irradiance[c]).abs() / o.irradiance[c];
+            assert!(
+                rel < 0.02,
+                "{}[{c}]: {} vs {}",
+                o.name,
+                h[c],
+                o.irradiance[c]
+            );
+        }
+    }
+}

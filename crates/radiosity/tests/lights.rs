@@ -239,6 +239,7 @@ fn office_luminaire_flux_equals_absorbed_plus_escaped_for_every_solver() {
         SolverKind::Jacobi,
         SolverKind::GaussSeidel,
         SolverKind::Progressive,
+        SolverKind::Hierarchical,
     ] {
         let solved = solve(scene, 800, solver, 1e-3);
         let report = Report::new(&scene.name, &solved.mesh, &solved.solution, "raycast");

@@ -317,9 +317,15 @@ impl Hierarchical {
             form_factor_seconds: 0.0,
             tree,
         };
-        h.set_dark_floor([0.0; 3]);
         h.grow();
         h.rebuild_mesh(&objects, scene);
+        // Light sources (point, spot, goniometric) count as emitted power: their first shot
+        // is part of the leaves' source term (see `rebuild_mesh`).
+        for c in 0..3 {
+            h.emitted_rgb[c] += h.mesh.light_power[c];
+        }
+        h.emitted = h.emitted_rgb[0].max(h.emitted_rgb[1]).max(h.emitted_rgb[2]);
+        h.set_dark_floor([0.0; 3]);
         Ok(h)
     }
 
@@ -979,8 +985,8 @@ impl Hierarchical {
 
     /// Rebuilds the leaf mesh: every input polygon's leaves in scene order, one patch per
     /// input polygon, vertices welded per polygon (children share their parents' exact edge
-    /// midpoints).
-    fn rebuild_mesh(&mut self, objects: &[String], _scene: &Scene) {
+    /// midpoints), with the light sources' direct irradiance on every leaf.
+    fn rebuild_mesh(&mut self, objects: &[String], scene: &Scene) {
         let mut mesh = Mesh {
             objects: objects.to_vec(),
             ..Mesh::default()
@@ -1034,6 +1040,9 @@ impl Hierarchical {
             });
             mesh.surface_polygons.push(outline);
         }
+        // The first shot from the scene's light sources onto the new leaves (E + ρ · direct
+        // is every leaf's source term, as in the classic pipeline).
+        crate::direct::illuminate_with(&mut mesh, &scene.lights, &self.visibility);
         self.mesh = mesh;
         self.leaves = leaves;
     }
