@@ -40,6 +40,9 @@ pub enum Command {
     Progressive(crate::cmd_progressive::ProgressiveArgs),
     /// Run every solver on the same mesh and plot their error against time and iterations.
     Compare(crate::cmd_compare::CompareArgs),
+    /// Solve a scene (or load a saved solution) and show it live in a web browser: a local
+    /// server on 127.0.0.1 whose address is printed; Ctrl-C stops it.
+    View(crate::cmd_view::ViewCmdArgs),
 }
 
 /// Options that decide how a scene is meshed and solved.

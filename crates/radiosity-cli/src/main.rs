@@ -5,8 +5,10 @@ mod args;
 mod cmd_compare;
 mod cmd_formfactor;
 mod cmd_progressive;
+mod cmd_view;
 mod commands;
 mod progress;
+mod view;
 
 use clap::error::ErrorKind;
 use clap::Parser;
