@@ -13,6 +13,7 @@ mod headless;
 mod viewer;
 
 use serde_json::Value;
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::{Duration, Instant};
@@ -24,7 +25,13 @@ fn chromium() -> Option<PathBuf> {
             std::env::var_os("RADIOSITY_REQUIRE_BROWSER").is_none(),
             "RADIOSITY_REQUIRE_BROWSER is set but no chromium was found (set CHROMIUM)"
         );
-        eprintln!("skipped: no chromium found (install Debian's chromium or set CHROMIUM)");
+        // Straight to stderr, past the test harness's capture, so that a skip is seen.
+        let _ = writeln!(
+            std::io::stderr(),
+            "{}: skipped, no chromium found (install Debian's chromium or set CHROMIUM; \
+             RADIOSITY_REQUIRE_BROWSER=1 makes this a failure)",
+            module_path!()
+        );
     }
     found
 }
