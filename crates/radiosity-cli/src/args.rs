@@ -40,6 +40,9 @@ pub enum Command {
     Progressive(crate::cmd_progressive::ProgressiveArgs),
     /// Run every solver on the same mesh and plot their error against time and iterations.
     Compare(crate::cmd_compare::CompareArgs),
+    /// Solve a scene (or load a saved solution) and show it live in a web browser: a local
+    /// server on 127.0.0.1 whose address is printed; Ctrl-C stops it.
+    View(crate::cmd_view::ViewCmdArgs),
     /// Illuminance (lx) at point sensors and on work-plane grids: JSON, CSV and false-colour
     /// PNG with Emin, Ē, Emax and the uniformity U0.
     Measure(crate::cmd_measure::MeasureArgs),

@@ -25,6 +25,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Formfactor(args) => crate::cmd_formfactor::run(args),
         Command::Progressive(args) => crate::cmd_progressive::run(args),
         Command::Compare(args) => crate::cmd_compare::run(args),
+        Command::View(args) => crate::cmd_view::run(args),
         Command::Measure(args) => crate::cmd_measure::run(args),
     }
 }

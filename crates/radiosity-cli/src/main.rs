@@ -7,8 +7,10 @@ mod cmd_falsecolour;
 mod cmd_formfactor;
 mod cmd_measure;
 mod cmd_progressive;
+mod cmd_view;
 mod commands;
 mod progress;
+mod view;
 
 use clap::error::ErrorKind;
 use clap::Parser;
