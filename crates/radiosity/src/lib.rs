@@ -16,7 +16,10 @@
 //! - [`solve`]: direct, Jacobi, Gauss–Seidel, progressive refinement, each reporting its
 //!   steps to an observer;
 //! - [`display`] and [`render`]: the crack-free display mesh and the rasteriser;
-//! - [`report`]: per-object values in physical units; [`pipeline`]: the stages in one call.
+//! - [`report`]: per-object values in physical units; [`pipeline`]: the stages in one call;
+//! - [`export`]: the solved scene as a GLB with a lightmap;
+//! - [`viewpoint`] and [`diagnose`]: a default camera that sees lit surfaces, and warnings
+//!   for scenes that would render black.
 //!
 //! Units: lengths in metres, emitted radiance L_e in W·m⁻²·sr⁻¹, radiosity, exitance and
 //! irradiance in W·m⁻², power in W.
@@ -26,7 +29,9 @@
 pub mod accel;
 pub mod cornell;
 pub mod coupling;
+pub mod diagnose;
 pub mod display;
+pub mod export;
 pub mod formfactor;
 pub mod geometry;
 pub mod io;
@@ -41,6 +46,7 @@ pub mod scene;
 pub mod settings;
 pub mod solve;
 pub mod units;
+pub mod viewpoint;
 
 pub use coupling::Coupling;
 pub use formfactor::FormFactorMethod;

@@ -69,6 +69,10 @@ pub struct Report {
     pub objects: Vec<ObjectReport>,
     /// Whole-scene totals.
     pub totals: Totals,
+    /// What the readers repaired or ignored and what may leave the image dark (see
+    /// [`crate::diagnose`]), one line each; empty (and not written) when all is well.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<String>,
 }
 
 /// The units of the report's quantities, spelled out for readers of the JSON.
@@ -160,6 +164,7 @@ impl Report {
                 seconds: st.seconds,
                 form_factor_seconds: st.form_factor_seconds,
             },
+            warnings: Vec::new(),
         }
     }
 
