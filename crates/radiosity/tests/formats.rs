@@ -170,7 +170,12 @@ fn baked_glb_holds_the_solutions_vertex_radiance() {
 fn mgf_room_balances_its_lamps_power() {
     let loaded = load("scenes/mgf_room.mgf");
     let scene = &loaded.scene;
-    let solved = solve(scene, 1500);
+    // Progressive refinement with the exact polygon-to-polygon factors: the room has ~1700
+    // meshed surfaces (the two-sided shade counts twice), too many for a quick direct solve.
+    let mut settings = SolveSettings::default();
+    settings.mesh.elements = 1200;
+    settings.form_factor = radiosity::FormFactorMethod::AnalyticPolygon;
+    let solved = solve_scene(scene, &settings, &NoProgress).expect("solves");
     let report = report(scene, &solved);
     // The bulb: ed = 1000 lm / (π·0.1²) lm·m⁻² over a ring tessellated into 24 triangles
     // of area ½·r²·sin(15°) each; luminous power = 683 lm/W × Σ_c Y_c Φ_c.
@@ -178,18 +183,18 @@ fn mgf_room_balances_its_lamps_power() {
     let lumens_expected = 1000.0 / (std::f64::consts::PI * 0.01) * ring_area;
     let emitted = report.totals.emitted_power;
     let lumens = 683.0 * (0.2126 * emitted[0] + 0.7152 * emitted[1] + 0.0722 * emitted[2]);
+    // Only rounding separates the two (the MGF colour is normalised to Y = 1).
     assert!(
         (lumens - lumens_expected).abs() < 1e-9 * lumens_expected,
         "{lumens} lm vs {lumens_expected} lm"
     );
-    // The direct solution conserves energy to rounding: emitted = absorbed + escaped.
+    // Emitted = absorbed + escaped (the open side) + unshot, to rounding.
     assert!(report.balance_error() < 1e-9, "{}", report.balance_error());
+    // The open front lets some light out, but most of it stays in the room.
+    let escaped = report.totals.escaped_power;
+    assert!((0..3).all(|c| escaped[c] > 0.0 && escaped[c] < 0.5 * emitted[c]));
     for object in &report.objects {
         assert!(object.radiosity.iter().all(|b| b.is_finite() && *b >= 0.0));
+        assert!(object.irradiance.iter().all(|e| e.is_finite() && *e >= 0.0));
     }
-    // Sensible brightness: the floor (1.6 m below the lamp, straight under it) gets about
-    // I/d² from a downward Lambertian disc, I = Φ/π; the room adds to that.
-    let floor = report.object("floor").expect("an object 'floor'");
-    let y = |v: [f64; 3]| 0.2126 * v[0] + 0.7152 * v[1] + 0.0722 * v[2];
-    assert!(y(floor.irradiance) > 0.0);
 }

@@ -243,6 +243,10 @@ pub fn visible_fraction(
     }
     if all > 0.0 {
         seen / all
+    } else if total == 0 {
+        // Only a sliver of the source is in front of the receiver, too thin for any probe
+        // or sub-area to see: nothing says it is hidden (and 0/0 would poison the system).
+        1.0
     } else {
         visible as f64 / total as f64
     }

@@ -158,6 +158,9 @@ pub struct Mesh {
     /// The meshed surface polygons (scene surfaces, split where other surfaces touch them),
     /// indexed like `surfaces`; element `surface` fields index these.
     pub surface_polygons: Vec<Polygon>,
+    /// The back-to-back twin of each surface of a two-sided material, indexed like
+    /// `surfaces` (both ways; shorter or empty where no surface has one).
+    pub twin: Vec<Option<u32>>,
 }
 
 impl Mesh {
@@ -208,6 +211,7 @@ impl Mesh {
             surfaces: Vec::new(),
             objects: objects.clone(),
             surface_polygons: Vec::new(),
+            twin: Vec::new(),
         };
         for (scene_surface, polygon) in pieces.iter() {
             let surface = &scene.surfaces[*scene_surface];
@@ -436,6 +440,9 @@ impl Mesh {
         exitance: [f64; 3],
     ) {
         let twin = SurfaceId(self.surfaces.len() as u32);
+        self.twin.resize(twin.0 as usize + 1, None);
+        self.twin[front.0 as usize] = Some(twin.0);
+        self.twin[twin.0 as usize] = Some(front.0);
         let data = SurfaceData {
             exitance,
             ..self.surfaces[front.0 as usize].clone()
@@ -480,6 +487,14 @@ impl Mesh {
             };
             self.patches.push(twin_patch);
         }
+    }
+
+    /// Whether surfaces `a` and `b` are one sheet: the same surface, or the two sides of a
+    /// two-sided one. They exchange no light (the form factor between the two sides of one
+    /// plane is zero; computed from element centres that round off the plane it could be
+    /// anything, even NaN), so form-factor engines skip such pairs.
+    pub fn same_sheet(&self, a: u32, b: u32) -> bool {
+        a == b || self.twin.get(a as usize).copied().flatten() == Some(b)
     }
 
     fn push_patch(&mut self, surface: SurfaceId, polygon: Polygon, first: u32) {

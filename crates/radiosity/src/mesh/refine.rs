@@ -175,6 +175,7 @@ pub fn refine(mesh: &Mesh, marked: &[bool]) -> Mesh {
         surfaces: mesh.surfaces.clone(),
         objects: mesh.objects.clone(),
         surface_polygons: mesh.surface_polygons.clone(),
+        twin: mesh.twin.clone(),
     }
 }
 
