@@ -72,6 +72,10 @@ pub struct SolveArgs {
     /// [default: 1].
     #[arg(long, value_name = "W", allow_hyphen_values = true)]
     pub overshoot: Option<f64>,
+    /// Hierarchical solver: the largest irradiance error one link may carry, as a fraction of
+    /// its receiver's irradiance (smaller: more links, more accurate) [default: 0.02].
+    #[arg(long, value_name = "X", allow_hyphen_values = true)]
+    pub epsilon: Option<f64>,
     /// Adaptive meshing: start from half of --elements (edges √2 longer) and split elements
     /// where the radiosity changes fast, up to --elements in total.
     #[arg(long)]
@@ -129,6 +133,7 @@ impl SolveArgs {
             tolerance: self.tolerance,
             max_shots: self.max_shots,
             overshoot: self.overshoot,
+            epsilon: self.epsilon,
             adaptive: self.adaptive,
             refine_threshold: self.refine_threshold,
             max_depth: self.max_depth,
@@ -217,7 +222,12 @@ pub struct SolveCmdArgs {
     #[arg(long, requires = "bake")]
     pub srgb_vertex_colors: bool,
     /// --bake: exposure in stops for COLOR_0 and the PNG lightmap (L · 2^stops) [default: 0].
-    #[arg(long, value_name = "STOPS", requires = "bake", allow_hyphen_values = true)]
+    #[arg(
+        long,
+        value_name = "STOPS",
+        requires = "bake",
+        allow_hyphen_values = true
+    )]
     pub bake_exposure: Option<f64>,
     /// --bake: the lightmap's longest side in texels [default: 2048].
     #[arg(long, value_name = "N", requires = "bake", allow_hyphen_values = true)]

@@ -51,7 +51,15 @@ fn write_room(dir: &Path, lamp_down: bool, emission: f64) {
     .unwrap();
 }
 
-const FAST: &[&str] = &["--elements", "200", "--quiet", "--width", "48", "--height", "36"];
+const FAST: &[&str] = &[
+    "--elements",
+    "200",
+    "--quiet",
+    "--width",
+    "48",
+    "--height",
+    "36",
+];
 
 #[test]
 fn closed_room_renders_lit_from_inside_named_after_the_file_and_is_not_overwritten() {
@@ -62,7 +70,9 @@ fn closed_room_renders_lit_from_inside_named_after_the_file_and_is_not_overwritt
     // No warning for a sound scene.
     assert!(!stderr(&o).contains("warning"), "{}", stderr(&o));
     let png = d.path().join("room.png");
-    let img = image::open(&png).expect("room.png, named after room.obj").to_rgb8();
+    let img = image::open(&png)
+        .expect("room.png, named after room.obj")
+        .to_rgb8();
     // The default camera is inside the room: the lit walls fill the image. (From outside,
     // the camera would see the backs of the walls, which are black.)
     let lit = img.pixels().filter(|p| p.0.iter().any(|&c| c > 30)).count();
@@ -78,7 +88,10 @@ fn closed_room_renders_lit_from_inside_named_after_the_file_and_is_not_overwritt
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     assert!(stderr(&o).contains("--force"), "{}", stderr(&o));
     assert_eq!(std::fs::read(&png).unwrap(), before);
-    let o = run_in(d.path(), &[&["render", "room.obj", "--force"], FAST].concat());
+    let o = run_in(
+        d.path(),
+        &[&["render", "room.obj", "--force"], FAST].concat(),
+    );
     assert!(o.status.success(), "{}", stderr(&o));
 }
 
@@ -88,14 +101,22 @@ fn a_room_without_emitter_warns_on_stderr_and_in_the_report() {
     write_room(d.path(), true, 0.0);
     let o = run_in(
         d.path(),
-        &["solve", "room.obj", "--elements", "100", "--report", "r.json"],
+        &[
+            "solve",
+            "room.obj",
+            "--elements",
+            "100",
+            "--report",
+            "r.json",
+        ],
     );
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(stderr(&o).contains("nothing emits light"), "{}", stderr(&o));
     let report: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(d.path().join("r.json")).unwrap())
-            .unwrap();
-    let warnings = report["warnings"].as_array().expect("warnings in the report");
+        serde_json::from_str(&std::fs::read_to_string(d.path().join("r.json")).unwrap()).unwrap();
+    let warnings = report["warnings"]
+        .as_array()
+        .expect("warnings in the report");
     assert!(warnings
         .iter()
         .any(|w| w.as_str().unwrap().contains("nothing emits light")));
@@ -143,7 +164,14 @@ fn solution_render_is_named_after_the_solution_and_looks_at_the_centre() {
     let d = tempfile::tempdir().unwrap();
     let o = run_in(
         d.path(),
-        &["solve", "--elements", "200", "--quiet", "--save", "box.solution.json"],
+        &[
+            "solve",
+            "--elements",
+            "200",
+            "--quiet",
+            "--save",
+            "box.solution.json",
+        ],
     );
     assert!(o.status.success(), "{}", stderr(&o));
     // The README's example: --eye alone keeps looking at the scene's centre, so the box is
@@ -196,14 +224,31 @@ fn gltf_scene_solves_and_bakes_to_glb() {
     // The baked GLB is itself a scene we can read back.
     let o = run_in(
         d.path(),
-        &["render", "out.glb", "--elements", "100", "--quiet", "--width", "16", "--height", "16"],
+        &[
+            "render",
+            "out.glb",
+            "--elements",
+            "100",
+            "--quiet",
+            "--width",
+            "16",
+            "--height",
+            "16",
+        ],
     );
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(d.path().join("out.png").exists());
     // An existing bake target is refused before solving.
     let o = run_in(
         d.path(),
-        &["solve", glb.to_str().unwrap(), "--elements", "100", "--bake", "out.glb"],
+        &[
+            "solve",
+            glb.to_str().unwrap(),
+            "--elements",
+            "100",
+            "--bake",
+            "out.glb",
+        ],
     );
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     assert!(stderr(&o).contains("exists"), "{}", stderr(&o));

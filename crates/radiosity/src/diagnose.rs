@@ -291,7 +291,7 @@ pub fn check(scene: &Scene, lights_used: bool) -> Vec<String> {
             names.join(", ")
         ));
     }
-    if !emitting && !(lights && lights_used) {
+    if !(emitting || (lights && lights_used)) {
         warnings.push(format!(
             "{name}: nothing emits light (no surface has an emission: MTL 'Ke', glTF \
              'emissiveFactor', MGF 'ed', scene-file 'emission'), so the solution is zero and \
@@ -412,7 +412,10 @@ mod tests {
             origin: Origin::default(),
         });
         let w = check(&scene, false);
-        assert!(w[0].contains("'bulb'") && w[0].contains("not use lights"), "{w:?}");
+        assert!(
+            w[0].contains("'bulb'") && w[0].contains("not use lights"),
+            "{w:?}"
+        );
         assert!(w[1].contains("nothing emits"), "{w:?}");
         // A solver that uses lights: the bulb lights the floor's front (half its power goes
         // down onto the unit floor from 0.5 m, the rest escapes: no warning).
@@ -456,8 +459,7 @@ mod tests {
         // One unit square of L_e = 1 (Y = 1): π W.
         assert!((power - PI).abs() < 1e-12);
         // Cosine-distributed about −y: mean cos θ = 2/3.
-        let mean: f64 =
-            rays.iter().map(|r| -r.direction.y).sum::<f64>() / rays.len() as f64;
+        let mean: f64 = rays.iter().map(|r| -r.direction.y).sum::<f64>() / rays.len() as f64;
         assert!((mean - 2.0 / 3.0).abs() < 0.03, "{mean}");
     }
 }

@@ -219,10 +219,7 @@ impl<'s> Probe<'s> {
 
     /// What the ray from `origin` along `dir` (unit) first meets.
     fn cast(&self, origin: DVec3, dir: DVec3) -> Seen {
-        let Some(hit) = self
-            .visibility
-            .first_hit(origin.as_vec3(), dir.as_vec3())
-        else {
+        let Some(hit) = self.visibility.first_hit(origin.as_vec3(), dir.as_vec3()) else {
             return Seen::Nothing;
         };
         let s = self.visibility.polygon_of(hit.triangle);
@@ -368,12 +365,42 @@ mod tests {
         };
         // Outward-facing, counter-clockwise seen from outside.
         let mut faces = vec![
-            vec![p(false, false, false), p(false, true, false), p(true, true, false), p(true, false, false)], // −z
-            vec![p(false, false, true), p(true, false, true), p(true, true, true), p(false, true, true)], // +z
-            vec![p(false, false, false), p(true, false, false), p(true, false, true), p(false, false, true)], // −y
-            vec![p(false, true, false), p(false, true, true), p(true, true, true), p(true, true, false)], // +y
-            vec![p(false, false, false), p(false, false, true), p(false, true, true), p(false, true, false)], // −x
-            vec![p(true, false, false), p(true, true, false), p(true, true, true), p(true, false, true)], // +x
+            vec![
+                p(false, false, false),
+                p(false, true, false),
+                p(true, true, false),
+                p(true, false, false),
+            ], // −z
+            vec![
+                p(false, false, true),
+                p(true, false, true),
+                p(true, true, true),
+                p(false, true, true),
+            ], // +z
+            vec![
+                p(false, false, false),
+                p(true, false, false),
+                p(true, false, true),
+                p(false, false, true),
+            ], // −y
+            vec![
+                p(false, true, false),
+                p(false, true, true),
+                p(true, true, true),
+                p(true, true, false),
+            ], // +y
+            vec![
+                p(false, false, false),
+                p(false, false, true),
+                p(false, true, true),
+                p(false, true, false),
+            ], // −x
+            vec![
+                p(true, false, false),
+                p(true, true, false),
+                p(true, true, true),
+                p(true, false, true),
+            ], // +x
         ];
         if inwards {
             for f in &mut faces {

@@ -47,11 +47,7 @@ fn cornell_box_gives_the_same_radiosity_from_every_format() {
         "scenes/cornell.mgf",
     ] {
         let loaded = load(path);
-        assert!(
-            loaded.warnings.is_empty(),
-            "{path}: {:?}",
-            loaded.warnings
-        );
+        assert!(loaded.warnings.is_empty(), "{path}: {:?}", loaded.warnings);
         let other = report(&loaded.scene, &solve(&loaded.scene, 400));
         assert_eq!(other.objects.len(), reference.objects.len(), "{path}");
         for (o, r) in other.objects.iter().zip(&reference.objects) {

@@ -2066,7 +2066,10 @@ mod tests {
         assert_eq!(scene.name, "test");
         // Its two triangles (0 1 2, 0 2 3) merge back into the quad, in the file's order.
         assert_eq!(scene.surfaces.len(), 1);
-        let quad: Vec<DVec3> = QUAD.iter().map(|p| DVec3::from_array(p.map(f64::from))).collect();
+        let quad: Vec<DVec3> = QUAD
+            .iter()
+            .map(|p| DVec3::from_array(p.map(f64::from)))
+            .collect();
         assert_eq!(scene.surfaces[0].polygon.vertices(), quad.as_slice());
         for s in &scene.surfaces {
             assert_eq!(s.object, "quad");

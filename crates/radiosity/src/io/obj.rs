@@ -140,9 +140,10 @@ pub fn parse_obj_with(
         library.read_mtl(&text, &label)?;
     }
     let mut warnings = Vec::new();
-    if let Some(w) = library.clamped.warning(&format!(
-        "reflectance ≥ 1 clamped to {MAX_REFLECTANCE}"
-    )) {
+    if let Some(w) = library
+        .clamped
+        .warning(&format!("reflectance ≥ 1 clamped to {MAX_REFLECTANCE}"))
+    {
         warnings.push(w);
     }
     if let Some(w) = library.ignored_warning() {
@@ -167,11 +168,13 @@ pub fn parse_obj_with(
         single_index: false,
         ..Default::default()
     };
-    let (models, _) = tobj::load_obj_buf(&mut obj.as_bytes(), &tobj_options, |_| Ok(Default::default()))
-        .map_err(|e| SceneError::Syntax {
-            at: Location::file(file_label),
-            message: format!("OBJ parser: {e}"),
-        })?;
+    let (models, _) = tobj::load_obj_buf(&mut obj.as_bytes(), &tobj_options, |_| {
+        Ok(Default::default())
+    })
+    .map_err(|e| SceneError::Syntax {
+        at: Location::file(file_label),
+        message: format!("OBJ parser: {e}"),
+    })?;
 
     let mut records = scan.faces.iter();
     let mut surfaces = Vec::new();
@@ -419,7 +422,8 @@ impl MaterialLibrary {
         }
         let id = MaterialId(self.materials.len() as u32);
         self.ids.insert(name.clone(), id);
-        self.materials.push(Material::new(name, DEFAULT_GREY, [0.0; 3]));
+        self.materials
+            .push(Material::new(name, DEFAULT_GREY, [0.0; 3]));
         self.default_grey = Some(id);
         id
     }

@@ -227,11 +227,8 @@ impl Mesh {
                 exitance: material.exitance(),
             });
             mesh.surface_polygons.push(polygon.clone());
-            let (first_vertex, first_element, first_patch) = (
-                mesh.vertices.len(),
-                mesh.elements.len(),
-                mesh.patches.len(),
-            );
+            let (first_vertex, first_element, first_patch) =
+                (mesh.vertices.len(), mesh.elements.len(), mesh.patches.len());
             let id = SurfaceId((mesh.surfaces.len() - 1) as u32);
             mesh.mesh_surface(id, polygon, size, options.patch_subdivision);
             if material.two_sided {
@@ -464,7 +461,11 @@ impl Mesh {
         for e in first_element..end_element {
             let front_element = &self.elements[e];
             // Keep the first corner, reverse the rest: same cell, opposite winding.
-            let mut corners: Vec<u32> = front_element.corners.iter().map(|c| c + vertex_shift).collect();
+            let mut corners: Vec<u32> = front_element
+                .corners
+                .iter()
+                .map(|c| c + vertex_shift)
+                .collect();
             corners[1..].reverse();
             let element = Element {
                 surface: twin.0,
