@@ -12,8 +12,8 @@ use std::path::PathBuf;
 
 /// Physically based diffuse global illumination by the radiosity method.
 ///
-/// Scenes: OBJ+MTL (Kd = reflectance, Ke = emitted radiance in W·m⁻²·sr⁻¹) or our JSON scene
-/// file; with no scene, the built-in Cornell box. Lengths in metres; radiosity and irradiance
+/// Scenes: OBJ+MTL (Kd = reflectance, Ke = emitted radiance in W·m⁻²·sr⁻¹), glTF 2.0
+/// (.gltf, .glb), MGF or our JSON scene file; with no scene, the built-in Cornell box. Lengths in metres; radiosity and irradiance
 /// in W·m⁻²; power in W; image pixels are radiance L = B/π.
 #[derive(Debug, Parser)]
 #[command(name = "radiosity", version, about = "Physically based diffuse global illumination by the radiosity method", long_about = None)]
@@ -106,6 +106,25 @@ pub struct SolveArgs {
     /// Show no progress and no summary.
     #[arg(long, short)]
     pub quiet: bool,
+    #[command(flatten)]
+    pub load: LoadArgs,
+}
+
+/// How scene files are read.
+#[derive(Debug, Clone, Default, Args)]
+pub struct LoadArgs {
+    /// Make repairs errors: zero-area faces (skipped), reflectance ≥ 1 (clamped to 0.99),
+    /// faces without a material (default grey), ignored texture, specular and transparency
+    /// statements.
+    #[arg(long)]
+    pub strict: bool,
+    /// Make every surface two-sided: both sides reflect (emission stays on the front).
+    #[arg(long)]
+    pub two_sided: bool,
+    /// glTF: emitted radiance in W·m⁻²·sr⁻¹ per unit of emissive colour
+    /// (emissiveFactor × emissiveStrength) [default: 1].
+    #[arg(long, value_name = "X", allow_hyphen_values = true)]
+    pub emission_scale: Option<f64>,
 }
 
 impl SolveArgs {
@@ -192,7 +211,7 @@ impl ViewArgs {
 /// `radiosity solve`.
 #[derive(Debug, Args)]
 pub struct SolveCmdArgs {
-    /// Scene file (.obj or .json); the built-in Cornell box if omitted.
+    /// Scene file (.obj, .gltf, .glb, .mgf or .json); the built-in Cornell box if omitted.
     pub scene: Option<PathBuf>,
     /// Write the report (per-object radiosity, irradiance, absorbed power; totals) as JSON.
     #[arg(long, value_name = "OUT.json")]
@@ -200,6 +219,28 @@ pub struct SolveCmdArgs {
     /// Save the solution, to render later with `render --solution`.
     #[arg(long, value_name = "FILE")]
     pub save: Option<PathBuf>,
+    /// Write the solved scene as a GLB: per-vertex radiance (COLOR_0, _RADIANCE) and a
+    /// lightmap (TEXCOORD_1, embedded PNG; also OUT_lightmap.png and OUT_lightmap.exr).
+    #[arg(long, value_name = "OUT.glb")]
+    pub bake: Option<PathBuf>,
+    /// --bake: COLOR_0 as display-ready sRGB bytes (after --bake-exposure) instead of linear
+    /// floats.
+    #[arg(long, requires = "bake")]
+    pub srgb_vertex_colors: bool,
+    /// --bake: exposure in stops for COLOR_0 and the PNG lightmap (L · 2^stops) [default: 0].
+    #[arg(
+        long,
+        value_name = "STOPS",
+        requires = "bake",
+        allow_hyphen_values = true
+    )]
+    pub bake_exposure: Option<f64>,
+    /// --bake: the lightmap's longest side in texels [default: 2048].
+    #[arg(long, value_name = "N", requires = "bake", allow_hyphen_values = true)]
+    pub lightmap_size: Option<i64>,
+    /// Overwrite output files that exist (without it, an existing output is an error).
+    #[arg(long)]
+    pub force: bool,
     #[command(flatten)]
     pub solve: SolveArgs,
 }
@@ -207,12 +248,16 @@ pub struct SolveCmdArgs {
 /// `radiosity render`.
 #[derive(Debug, Args)]
 pub struct RenderArgs {
-    /// Scene file (.obj or .json); the built-in Cornell box if omitted.
+    /// Scene file (.obj, .gltf, .glb, .mgf or .json); the built-in Cornell box if omitted.
     pub scene: Option<PathBuf>,
     /// Output image: .png (sRGB, 8-bit) or .exr (linear float RGB radiance)
-    /// [default: <scene name>.png].
+    /// [default: named after the input: room.obj → room.png, box.solution.json → box.png,
+    /// no scene → cornell.png].
     #[arg(short, long, value_name = "FILE")]
     pub output: Option<PathBuf>,
+    /// Overwrite the output if it exists (without it, an existing output is an error).
+    #[arg(long)]
+    pub force: bool,
     /// Render a saved solution (from `solve --save`) instead of solving a scene.
     #[arg(long, value_name = "FILE", conflicts_with = "scene")]
     pub solution: Option<PathBuf>,

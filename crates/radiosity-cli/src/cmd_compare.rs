@@ -13,7 +13,7 @@ use std::path::PathBuf;
 /// `radiosity compare`.
 #[derive(Debug, Args)]
 pub struct CompareArgs {
-    /// Scene file (.obj or .json); the built-in Cornell box if omitted.
+    /// Scene file (.obj, .gltf, .glb, .mgf or .json); the built-in Cornell box if omitted.
     pub scene: Option<PathBuf>,
     /// Output directory (created if missing): convergence.svg, convergence.png, table.md.
     #[arg(short, long, value_name = "DIR")]
@@ -39,7 +39,7 @@ pub fn run(args: CompareArgs) -> Result<()> {
         );
     }
     let defaults = CompareOptions::default();
-    let loaded = load_scene(args.scene.as_deref())?;
+    let loaded = load_scene(args.scene.as_deref(), &args.solve)?;
     let mut flags = args.solve.overrides();
     // The overshooting run's ω defaults to compare's own choice.
     let overshoot = flags.overshoot.take();

@@ -60,7 +60,7 @@ pub fn run(args: MeasureArgs) -> Result<()> {
         Some(p) => load_points(p)?,
         None => Vec::new(),
     };
-    let loaded = load_scene(args.scene.as_deref())?;
+    let loaded = load_scene(args.scene.as_deref(), &args.solve)?;
     let settings = loaded.settings(&args.solve.overrides())?;
     let layouts = specs
         .iter()

@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 /// `radiosity progressive`.
 #[derive(Debug, Args)]
 pub struct ProgressiveArgs {
-    /// Scene file (.obj or .json); the built-in Cornell box if omitted.
+    /// Scene file (.obj, .gltf, .glb, .mgf or .json); the built-in Cornell box if omitted.
     pub scene: Option<PathBuf>,
     /// Output directory (created if missing): frame_NNNN.png per frame, sheet.png.
     #[arg(short, long, value_name = "DIR")]
@@ -40,7 +40,7 @@ pub fn run(args: ProgressiveArgs) -> Result<()> {
     if args.solve.max_shots.is_some() {
         bail!("--max-shots does not apply to `progressive`: --frames decides the shots");
     }
-    let loaded = load_scene(args.scene.as_deref())?;
+    let loaded = load_scene(args.scene.as_deref(), &args.solve)?;
     let mut flags = args.solve.overrides();
     args.view.add_to(&mut flags);
     let settings = loaded.settings(&flags)?;

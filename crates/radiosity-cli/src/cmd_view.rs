@@ -98,7 +98,7 @@ pub fn run(args: ViewCmdArgs) -> Result<()> {
             }
         }
         None => {
-            let loaded = load_scene(args.scene.as_deref())?;
+            let loaded = load_scene(args.scene.as_deref(), &args.solve)?;
             let settings = loaded.settings(&args.solve.overrides())?;
             Job::Solve(Box::new((loaded, settings)))
         }

@@ -3,9 +3,12 @@
 
 use crate::args::{Cli, Command, RenderArgs, SolveArgs, SolveCmdArgs};
 use crate::progress::Bars;
-use anyhow::{Context, Result};
+use anyhow::{bail, Context, Result};
 use radiosity::display::Shading;
-use radiosity::io::scene_file::{load_any, SceneSettings};
+use radiosity::export::lightmap::AtlasSize;
+use radiosity::export::{ExportOptions, VertexColors};
+use radiosity::io::formats::{load_any_with, LoadOptions};
+use radiosity::io::scene_file::SceneSettings;
 use radiosity::io::solution_file::SolutionFile;
 use radiosity::pipeline::{
     render_elements, solve_scene_adaptive_observed, solve_scene_observed, Shaded, Solved,
@@ -36,23 +39,87 @@ pub(crate) struct Loaded {
     pub scene: Scene,
     pub file_settings: SceneSettings,
     pub file: Option<String>,
+    /// The readers' warnings and [`radiosity::diagnose::check`]'s, already printed.
+    pub warnings: Vec<String>,
 }
 
-pub(crate) fn load_scene(path: Option<&Path>) -> Result<Loaded> {
-    match path {
-        None => Ok(Loaded {
-            scene: radiosity::cornell::cornell_box(),
-            file_settings: SceneSettings::default(),
-            file: None,
-        }),
+/// Loads the scene (or the built-in Cornell box) with the reading flags of `solve`, and
+/// prints the readers' warnings and those of [`radiosity::diagnose::check`] on stderr (also
+/// with --quiet: they are not progress).
+pub(crate) fn load_scene(path: Option<&Path>, solve: &SolveArgs) -> Result<Loaded> {
+    let load = &solve.load;
+    let options = LoadOptions {
+        strict: load.strict,
+        two_sided: load.two_sided,
+        emission_scale: match load.emission_scale {
+            None => LoadOptions::default().emission_scale,
+            Some(x) if x.is_finite() && x >= 0.0 => x,
+            Some(x) => bail!("--emission-scale must be a finite number ≥ 0, got {x}"),
+        },
+    };
+    let mut loaded = match path {
+        None => {
+            let mut scene = radiosity::cornell::cornell_box();
+            if options.two_sided {
+                scene.materials.iter_mut().for_each(|m| m.two_sided = true);
+            }
+            Loaded {
+                scene,
+                file_settings: SceneSettings::default(),
+                file: None,
+                warnings: Vec::new(),
+            }
+        }
         Some(p) => {
-            let loaded = load_any(p).with_context(|| format!("loading {}", p.display()))?;
-            Ok(Loaded {
+            let loaded =
+                load_any_with(p, &options).with_context(|| format!("loading {}", p.display()))?;
+            Loaded {
                 scene: loaded.scene,
                 file_settings: loaded.settings,
                 file: Some(p.display().to_string()),
-            })
+                warnings: loaded.warnings,
+            }
         }
+    };
+    loaded.warnings.extend(radiosity::diagnose::check(
+        &loaded.scene,
+        radiosity::diagnose::SOLVER_USES_LIGHTS,
+    ));
+    for warning in &loaded.warnings {
+        eprintln!("warning: {warning}");
+    }
+    Ok(loaded)
+}
+
+/// Refuses to overwrite an existing file unless `force` (checked before any work).
+pub(crate) fn refuse_overwrite(path: &Path, force: bool) -> Result<()> {
+    if !force && path.exists() {
+        bail!(
+            "{} exists; use --force to overwrite it, or -o/--output another name",
+            path.display()
+        );
+    }
+    Ok(())
+}
+
+/// The name outputs are given after the input: the file stem (`room.obj` → `room`, a saved
+/// `box.solution.json` → `box`), else the scene's name; a name that is empty or not a plain
+/// file name (a path, `..`) becomes `render`, so it cannot write elsewhere.
+pub(crate) fn output_stem(input: Option<&Path>, scene_name: &str) -> String {
+    let stem = input
+        .and_then(|p| p.file_stem())
+        .map(|s| s.to_string_lossy().into_owned());
+    let stem = stem.map(|s| s.strip_suffix(".solution").map(str::to_owned).unwrap_or(s));
+    let name = stem.unwrap_or_else(|| scene_name.to_owned());
+    let plain = !name.is_empty()
+        && name != "."
+        && name != ".."
+        && !name.contains(['/', '\\'])
+        && Path::new(&name).file_name().is_some();
+    if plain {
+        name
+    } else {
+        "render".to_owned()
     }
 }
 
@@ -104,21 +171,36 @@ pub(crate) fn run_solve(scene: &Scene, settings: &Settings, args: &SolveArgs) ->
 }
 
 fn solve(args: SolveCmdArgs) -> Result<()> {
-    let loaded = load_scene(args.scene.as_deref())?;
+    let loaded = load_scene(args.scene.as_deref(), &args.solve)?;
     let settings = loaded.settings(&args.solve.overrides())?;
-    for path in [&args.report, &args.save].into_iter().flatten() {
+    let export_options = match &args.bake {
+        Some(_) => Some(bake_options(&args)?),
+        None => None,
+    };
+    let mut outputs: Vec<PathBuf> = [&args.report, &args.save]
+        .into_iter()
+        .flatten()
+        .cloned()
+        .collect();
+    if let Some(glb) = &args.bake {
+        let (exr, png) = radiosity::export::lightmap_paths(glb);
+        outputs.extend([glb.clone(), exr, png]);
+    }
+    for path in &outputs {
+        refuse_overwrite(path, args.force)?;
         radiosity::io::atomic::check_writable(path)
             .with_context(|| format!("cannot write {}", path.display()))?;
     }
     let solved = run_solve(&loaded.scene, &settings, &args.solve)?;
     let scene = &loaded.scene;
-    let report = Report::new(
+    let mut report = Report::new(
         &scene.name,
         &solved.mesh,
         &solved.solution,
         solved.form_factor.name(),
     )
     .with_lights(&scene.lights);
+    report.warnings = loaded.warnings.clone();
     if !args.solve.quiet {
         let t = &report.totals;
         let fmt = |p: [f64; 3]| format!("({:.4}, {:.4}, {:.4}) W", p[0], p[1], p[2]);
@@ -142,7 +224,25 @@ fn solve(args: SolveCmdArgs) -> Result<()> {
             .save(path)
             .with_context(|| format!("saving solution {}", path.display()))?;
     }
-    if args.report.is_none() && args.save.is_none() {
+    if let (Some(path), Some(options)) = (&args.bake, &export_options) {
+        let radiosity = solved.solution.display_radiosity(&solved.mesh, false);
+        let baked = radiosity::export::solution::baked_scene(scene, &solved.mesh, &radiosity);
+        let summary = radiosity::export::export(&baked, path, options)
+            .with_context(|| format!("baking {}", path.display()))?;
+        if !args.solve.quiet {
+            eprintln!(
+                "wrote {} ({} charts in a {}×{} lightmap, {:.0} texels/m) with {} and {}",
+                summary.glb.display(),
+                summary.charts,
+                summary.atlas.0,
+                summary.atlas.1,
+                summary.texels_per_metre,
+                summary.png.display(),
+                summary.exr.display()
+            );
+        }
+    }
+    if args.report.is_none() && args.save.is_none() && args.bake.is_none() {
         // Nothing asked to be written: print the report so the solve is not wasted.
         println!("{}", serde_json::to_string_pretty(&report)?);
     }
@@ -160,8 +260,12 @@ fn render(args: RenderArgs) -> Result<()> {
     if let (Some(_), Some(out)) = (args.false_colour, &args.output) {
         crate::cmd_falsecolour::check_png(out)?;
     }
-    let output_for = |name: &str| -> Result<PathBuf> {
-        let output = args.output.clone().unwrap_or_else(|| default_output(name));
+    let output_for = |input: Option<&Path>, name: &str| -> Result<PathBuf> {
+        let output = args
+            .output
+            .clone()
+            .unwrap_or_else(|| PathBuf::from(format!("{}.png", output_stem(input, name))));
+        refuse_overwrite(&output, args.force)?;
         radiosity::render::check_output(&output)?;
         Ok(output)
     };
@@ -173,7 +277,7 @@ fn render(args: RenderArgs) -> Result<()> {
         let file = SolutionFile::load(path)
             .with_context(|| format!("loading solution {}", path.display()))?;
         let settings = resolve(None, &flags)?;
-        let output = output_for(&file.scene)?;
+        let output = output_for(Some(path), &file.scene)?;
         let base = file.camera.map(Camera::from).unwrap_or_default();
         let vertices = file.vertices();
         let camera = radiosity::settings::camera(base, centre_of(&vertices), &args.view.camera())?;
@@ -183,10 +287,10 @@ fn render(args: RenderArgs) -> Result<()> {
         };
         (vertices, file.elements, radiosity, camera, output, settings)
     } else {
-        let loaded = load_scene(args.scene.as_deref())?;
+        let loaded = load_scene(args.scene.as_deref(), &args.solve)?;
         let settings = loaded.settings(&flags)?;
         let scene = &loaded.scene;
-        let output = output_for(&scene.name)?;
+        let output = output_for(args.scene.as_deref(), &scene.name)?;
         let camera = scene_camera(scene, &args.view)?;
         let solved = run_solve(scene, &settings, &args.solve)?;
         let radiosity = match args.false_colour {
@@ -251,15 +355,28 @@ fn render(args: RenderArgs) -> Result<()> {
     Ok(())
 }
 
-/// `<name>.png` in the working directory; a name that is empty or not a plain file name
-/// (a path, `..`) becomes `render.png`, so a scene's name cannot write elsewhere.
-fn default_output(name: &str) -> PathBuf {
-    let plain = !name.is_empty()
-        && name != "."
-        && name != ".."
-        && !name.contains(['/', '\\'])
-        && Path::new(name).file_name().is_some();
-    PathBuf::from(format!("{}.png", if plain { name } else { "render" }))
+/// The export options from `solve`'s --bake flags, validated.
+fn bake_options(args: &SolveCmdArgs) -> Result<ExportOptions> {
+    let mut options = ExportOptions::default();
+    if args.srgb_vertex_colors {
+        options.vertex_colors = VertexColors::DisplaySrgb;
+    }
+    if let Some(stops) = args.bake_exposure {
+        if !(stops.is_finite() && stops.abs() <= 64.0) {
+            bail!("--bake-exposure must be a number of stops between -64 and 64, got {stops}");
+        }
+        options.exposure_stops = stops as f32;
+    }
+    if let Some(side) = args.lightmap_size {
+        let max = radiosity::export::lightmap::MAX_ATLAS_SIDE as i64;
+        if !(16..=max).contains(&side) {
+            bail!("--lightmap-size must be between 16 and {max} texels, got {side}");
+        }
+        options.lightmap.size = AtlasSize::Fit {
+            max_side: side as u32,
+        };
+    }
+    Ok(options)
 }
 
 /// The scene's camera (or one framing it) with the camera flags applied; `--eye` alone looks

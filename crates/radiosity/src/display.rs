@@ -9,7 +9,8 @@
 //! e.g. where the light meets the ceiling, or after adaptive refinement) is inserted into that
 //! edge, and the element is fanned from its centre, so no gap can open along the edge. The
 //! inserted vertex takes the value interpolated along the edge, so shading stays continuous.
-//! Surfaces are one-sided: seen from behind they are black.
+//! Surfaces are one-sided: seen from behind they are black, except for the two sides of a
+//! two-sided surface, where the side facing the viewer shows ([`back_to_back`]).
 
 use crate::mesh::Element;
 use crate::render::ShadedTriangle;
@@ -275,6 +276,52 @@ impl DisplayMesh {
         }
         out
     }
+}
+
+/// Which elements have a back-to-back twin: another element at the same place (centres
+/// within 10⁻⁹ of the scene's size) facing the opposite way, as meshing makes for two-sided
+/// surfaces (see [`crate::mesh`]). Seen from behind, such an element is left out of the image
+/// so that its twin, which faces the viewer, shows ([`DisplayMesh::shaded_triangles`]).
+pub fn back_to_back(elements: &[Element]) -> Vec<bool> {
+    let mut out = vec![false; elements.len()];
+    if elements.is_empty() {
+        return out;
+    }
+    let (lo, hi) = elements.iter().fold(
+        (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+        |(lo, hi), e| (lo.min(e.centre), hi.max(e.centre)),
+    );
+    let tol = 1e-9 * (hi - lo).length().max(1e-9);
+    // Cells much larger than the tolerance: a twin is in the same cell or a neighbour.
+    let cell = 1e3 * tol;
+    let key = |p: DVec3| {
+        let q = ((p - lo) / cell).floor();
+        (q.x as i64, q.y as i64, q.z as i64)
+    };
+    let mut grid: HashMap<(i64, i64, i64), Vec<u32>> = HashMap::new();
+    for (i, e) in elements.iter().enumerate() {
+        grid.entry(key(e.centre)).or_default().push(i as u32);
+    }
+    for (i, e) in elements.iter().enumerate() {
+        let (x, y, z) = key(e.centre);
+        'search: for dx in -1..=1 {
+            for dy in -1..=1 {
+                for dz in -1..=1 {
+                    for &j in grid.get(&(x + dx, y + dy, z + dz)).into_iter().flatten() {
+                        let f = &elements[j as usize];
+                        if j as usize != i
+                            && f.normal.dot(e.normal) < -0.999_999
+                            && f.centre.distance(e.centre) <= tol
+                        {
+                            out[i] = true;
+                            break 'search;
+                        }
+                    }
+                }
+            }
+        }
+    }
+    out
 }
 
 /// Builds the shaded triangles for a camera at `eye` (see [`DisplayMesh`]).

@@ -19,7 +19,10 @@
 //! - [`display`] and [`render`]: the crack-free display mesh and the rasteriser;
 //! - [`report`]: per-object values in physical units (W·m⁻², lx, cd/m²); [`measure`]:
 //!   illuminance at sensor points and on work-plane grids; [`pipeline`]: the stages in one
-//!   call.
+//!   call;
+//! - [`export`]: the solved scene as a GLB with a lightmap;
+//! - [`viewpoint`] and [`diagnose`]: a default camera that sees lit surfaces, and warnings
+//!   for scenes that would render black.
 //!
 //! Units: lengths in metres, emitted radiance L_e in W·m⁻²·sr⁻¹, radiosity, exitance and
 //! irradiance in W·m⁻², power in W.
@@ -30,7 +33,9 @@ pub mod accel;
 pub mod cornell;
 pub mod coupling;
 pub mod direct;
+pub mod diagnose;
 pub mod display;
+pub mod export;
 pub mod formfactor;
 pub mod geometry;
 pub mod io;
@@ -46,6 +51,7 @@ pub mod scene;
 pub mod settings;
 pub mod solve;
 pub mod units;
+pub mod viewpoint;
 
 pub use coupling::Coupling;
 pub use formfactor::FormFactorMethod;

@@ -71,8 +71,11 @@ pub fn solve_scene_observed(
     observer: &mut dyn Observer,
 ) -> Result<Solved, PipelineError> {
     if settings.solve.solver == SolverKind::Hierarchical {
+        // The hierarchy is built from the scene, so two-sided surfaces become explicit
+        // back-to-back pairs first (meshing does the same for the other solvers).
+        let explicit = crate::mesh::two_sided::with_back_sides(scene);
         let solved = crate::solve::hierarchical::solve(
-            scene,
+            explicit.as_ref().unwrap_or(scene),
             settings.form_factor,
             settings.hierarchical,
             &settings.solve,
@@ -229,7 +232,8 @@ pub fn render_elements(
     options: &RenderOptions,
 ) -> Result<Image, PipelineError> {
     let display = DisplayMesh::build(shaded.vertices, shaded.elements, shaded.radiosity, shading);
-    let triangles = display.shaded_triangles(shaded.elements, &|_| false, camera.eye);
+    let twinned = crate::display::back_to_back(shaded.elements);
+    let triangles = display.shaded_triangles(shaded.elements, &|e| twinned[e], camera.eye);
     let edges = if wireframe {
         crate::display::element_edges(shaded.vertices, shaded.elements)
     } else {

@@ -122,6 +122,10 @@ pub struct Report {
     /// The light sources that are not surfaces (empty without).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub lights: Vec<LightReport>,
+    /// What the readers repaired or ignored and what may leave the image dark (see
+    /// [`crate::diagnose`]), one line each; empty (and not written) when all is well.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<String>,
 }
 
 /// The units of the report's quantities, spelled out for readers of the JSON.
@@ -241,6 +245,7 @@ impl Report {
                 seconds: st.seconds,
                 form_factor_seconds: st.form_factor_seconds,
             },
+            warnings: Vec::new(),
         }
     }
 

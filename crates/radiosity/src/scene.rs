@@ -4,7 +4,10 @@
 //! - reflectance ρ is the Lambertian albedo per RGB channel (BRDF = ρ/π), 0 ≤ ρ < 1;
 //! - emission is the emitted radiance L_e in W·m⁻²·sr⁻¹, front side only, so the emitted
 //!   exitance (radiosity) is E = π·L_e in W·m⁻²;
-//! - every surface is one-sided: its back is opaque, black and emits nothing.
+//! - a surface is one-sided unless its material is two-sided: a one-sided surface's back is
+//!   opaque, black and emits nothing; a two-sided surface reflects on both sides (meshing
+//!   gives it a back-to-back twin, see [`crate::mesh`]) and emits from its front only unless
+//!   [`Material::two_sided_emission`] is set.
 //!
 //! Loading from files lives in [`crate::io`]; the built-in Cornell box in [`crate::cornell`].
 
@@ -29,9 +32,13 @@ pub struct Material {
     pub reflectance: [f64; 3],
     /// Emitted radiance L_e per RGB channel, W·m⁻²·sr⁻¹ (front side only).
     pub emission: [f64; 3],
-    /// Both sides reflect light (each side with ρ); emission stays on the front side.
-    /// One-sided surfaces (the default) have an opaque, black back.
+    /// Both sides reflect light (each side with ρ); emission stays on the front side unless
+    /// `two_sided_emission` is set. One-sided surfaces (the default) have an opaque, black
+    /// back.
     pub two_sided: bool,
+    /// With `two_sided`, the back emits L_e too (a lamp panel lit on both faces). Ignored for
+    /// one-sided materials.
+    pub two_sided_emission: bool,
 }
 
 impl Material {
@@ -42,6 +49,7 @@ impl Material {
             reflectance,
             emission,
             two_sided: false,
+            two_sided_emission: false,
         }
     }
 
@@ -152,12 +160,11 @@ impl Scene {
         )
     }
 
-    /// The scene's camera, or one framing its bounds.
+    /// The scene's camera, or [`crate::viewpoint::default_camera`]: from inside a closed
+    /// scene, from the lit side of an open one.
     pub fn camera_or_default(&self) -> Camera {
-        self.camera.unwrap_or_else(|| {
-            let (lo, hi) = self.bounds();
-            Camera::framing(lo, hi)
-        })
+        self.camera
+            .unwrap_or_else(|| crate::viewpoint::default_camera(self))
     }
 
     /// Total area in m².

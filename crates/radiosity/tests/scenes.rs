@@ -6,7 +6,8 @@
 use radiosity::cornell::{cornell_box, cornell_camera};
 use radiosity::geometry::{GeometryError, Polygon};
 use radiosity::io::error::SceneError;
-use radiosity::io::obj::{load_obj, parse_obj};
+use radiosity::io::formats::{load_any_with, LoadOptions};
+use radiosity::io::obj::{load_obj, parse_obj, DEFAULT_GREY, MAX_REFLECTANCE};
 use radiosity::io::scene_file::{
     load_any, load_scene_file, save_scene_file, scene_to_json, SceneSettings,
 };
@@ -254,8 +255,37 @@ fn expect_error(
     is_expected: impl Fn(&SceneError) -> bool,
     needles: &[&str],
 ) -> SceneError {
+    expect_error_with(files, &LoadOptions::default(), is_expected, needles)
+}
+
+/// [`expect_error`] for the repairs that are errors only with `--strict`.
+fn expect_strict_error(
+    files: &[(&str, &str)],
+    is_expected: impl Fn(&SceneError) -> bool,
+    needles: &[&str],
+) -> SceneError {
+    let strict = LoadOptions {
+        strict: true,
+        ..LoadOptions::default()
+    };
+    expect_error_with(files, &strict, is_expected, needles)
+}
+
+/// Loads the first of `files` leniently and returns its warnings.
+fn load_warnings(files: &[(&str, &str)]) -> (Scene, Vec<String>) {
     let (_dir, path) = write_files(files);
-    let err = match load_any(&path) {
+    let loaded = load_any_with(&path, &LoadOptions::default()).expect("loads leniently");
+    (loaded.scene, loaded.warnings)
+}
+
+fn expect_error_with(
+    files: &[(&str, &str)],
+    options: &LoadOptions,
+    is_expected: impl Fn(&SceneError) -> bool,
+    needles: &[&str],
+) -> SceneError {
+    let (_dir, path) = write_files(files);
+    let err = match load_any_with(&path, options) {
         Ok(_) => panic!("{} loaded; expected an error", files[0].0),
         Err(e) => e,
     };
@@ -404,18 +434,23 @@ fn unknown_usemtl() {
 #[test]
 fn face_without_material() {
     let obj = "v 0 0 0\nv 1 0 0\nv 1 1 0\ng walls\nf 1 2 3\n";
-    expect_error(
+    expect_strict_error(
         &[("bad.obj", obj)],
         |e| matches!(e, SceneError::NoMaterial { .. }),
         &["bad.obj: line 5", "object 'walls'", "no material"],
     );
+    // Leniently: the documented default grey, with a warning naming the line and object.
+    let (scene, warnings) = load_warnings(&[("bad.obj", obj)]);
+    assert_eq!(scene.material(&scene.surfaces[0]).reflectance, DEFAULT_GREY);
+    assert_eq!(warnings.len(), 1, "{warnings:?}");
+    assert!(warnings[0].contains("line 5 'walls'"), "{warnings:?}");
 }
 
 #[test]
 fn reflectance_of_one_or_more() {
     let obj = obj_with("f 1 2 3 4\n");
     let mtl = "newmtl white\nKd 0.5 0.5 0.5\n\nnewmtl mirror\nKd 0.5 1.2 0.5\n";
-    let err = expect_error(
+    let err = expect_strict_error(
         &[("bad.obj", &obj), ("bad.mtl", mtl)],
         |e| matches!(e, SceneError::Material { .. }),
         &[
@@ -426,11 +461,16 @@ fn reflectance_of_one_or_more() {
     );
     assert!(err.to_string().contains(std::path::MAIN_SEPARATOR));
     let mtl = "newmtl white\nKd 1 1 1\n";
-    expect_error(
+    expect_strict_error(
         &[("bad.obj", &obj), ("bad.mtl", mtl)],
         |e| matches!(e, SceneError::Material { .. }),
         &["bad.mtl: line 1", "material 'white'", "must be < 1"],
     );
+    // Leniently: clamped to the documented maximum, with one warning naming the material.
+    let (scene, warnings) = load_warnings(&[("bad.obj", &obj), ("bad.mtl", mtl)]);
+    assert_eq!(scene.materials[0].reflectance, [MAX_REFLECTANCE; 3]);
+    assert_eq!(warnings.len(), 1, "{warnings:?}");
+    assert!(warnings[0].contains("'white'"), "{warnings:?}");
 }
 
 #[test]

@@ -97,7 +97,11 @@ impl Engine for KernelEngine<'_> {
     }
 
     fn pair(&self, element: usize, patch: usize) -> f64 {
-        if self.mesh.elements[element].surface == self.mesh.patches[patch].surface {
+        let (receiver, source) = (
+            self.mesh.elements[element].surface,
+            self.mesh.patches[patch].surface,
+        );
+        if self.mesh.same_sheet(receiver, source) {
             return 0.0;
         }
         self.kernel.form_factor(
@@ -109,7 +113,7 @@ impl Engine for KernelEngine<'_> {
 
     fn element_pair(&self, element: usize, source: usize) -> f64 {
         let (e, s) = (&self.mesh.elements[element], &self.mesh.elements[source]);
-        if e.surface == s.surface {
+        if self.mesh.same_sheet(e.surface, s.surface) {
             return 0.0;
         }
         let src = self.element_sources[source]

@@ -173,11 +173,14 @@ pub enum SceneError {
         message: String,
     },
     /// The file extension is not one we can load.
-    #[error("{file}: unknown scene format (expected a .obj or .json file)")]
+    #[error("{file}: unknown scene format (expected a .obj, .gltf, .glb, .mgf or .json file)")]
     UnknownFormat {
         /// The file, as the user named it.
         file: String,
     },
+    /// A glTF file that cannot be read (its message names the file and the part of it).
+    #[error(transparent)]
+    Gltf(#[from] crate::io::gltf::GltfError),
     /// The input defines no surfaces at all.
     #[error("{file}: scene has no surfaces")]
     Empty {

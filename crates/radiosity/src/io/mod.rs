@@ -1,8 +1,12 @@
-//! Reading and writing: scenes (OBJ+MTL, our JSON scene file), solutions, atomic output.
+//! Reading and writing: scenes (OBJ+MTL, glTF 2.0, MGF, our JSON scene file), solutions,
+//! atomic output.
 
 pub mod atomic;
 pub mod error;
 pub mod lights;
+pub mod formats;
+pub mod gltf;
+pub mod mgf;
 pub mod obj;
 pub mod scene_file;
 pub mod solution_file;

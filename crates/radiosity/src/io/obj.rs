@@ -6,9 +6,27 @@
 //!   planar non-convex face; faces are never triangulated otherwise;
 //! - a surface's `object` is the current `o` name, else the current `g` name, else
 //!   `object_N`; its `group` is the current `g` name (empty if none);
-//! - in the MTL, `Kd` is the diffuse reflectance ρ (required, each channel in [0, 1)) and `Ke`
+//! - in the MTL, `Kd` is the diffuse reflectance ρ (required, each channel ≥ 0) and `Ke`
 //!   the emitted radiance L_e in W·m⁻²·sr⁻¹ (optional, default 0, finite and ≥ 0). All other
-//!   MTL statements are ignored;
+//!   MTL statements are ignored; those that would change the look — texture maps (`map_*`,
+//!   `bump`, `disp`, `decal`, `refl`, `norm`), specular reflection (`Ks` above 0,
+//!   `Pm`/`Pr`) and transparency (`d` below 1, `Tr` above 0, `Tf` below 1, `Ni` with
+//!   transparency) — are named in one warning;
+//!
+//! Real files are messy, so by default ([`ObjOptions::strict`] off) three problems are
+//! repaired, each reported in one warning that counts the cases and names the first few by
+//! file and line:
+//! - a face with zero area (fewer than three distinct vertices, or collinear ones) is skipped
+//!   (if every face is, the first one's error is returned);
+//! - a reflectance channel ≥ 1 (e.g. `Kd 1 1 1` on glass) is clamped to [`MAX_REFLECTANCE`]:
+//!   ρ = 1 would make a closed scene's radiosity system singular, and no real diffuse
+//!   surface reflects more than about 99 %;
+//! - a face before any `usemtl` gets [`DEFAULT_GREY`], a neutral ρ = 0.5 (about the mean
+//!   albedo of an interior; a material named [`DEFAULT_MATERIAL`]).
+//!
+//! With `strict`, each of these, and every ignored statement above, is an error instead.
+//! Malformed syntax, bad indices, NaNs, negative ρ and faces that are not planar are always
+//! errors.
 //! - `mtllib` names one file (the rest of the line, so names may contain spaces), relative to
 //!   the OBJ file; `l` (polyline) statements and unknown statements are ignored; an OBJ has no
 //!   camera.
@@ -22,27 +40,74 @@
 //!
 //! See also: [`crate::io::scene_file`] for our own JSON format, which can include OBJ files.
 
-use crate::geometry::split_into_convex;
+use crate::geometry::{split_into_convex, GeometryError};
 use crate::io::error::{Location, SceneError};
 use crate::scene::{Material, MaterialId, Origin, Scene, Surface};
 use glam::DVec3;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
-/// Loads an OBJ file and the MTL files it names (relative to the OBJ's directory).
+/// Largest reflectance a material keeps when reading leniently; channels ≥ 1 become this.
+pub const MAX_REFLECTANCE: f64 = 0.99;
+
+/// Reflectance of the material given to faces that have none (read leniently).
+pub const DEFAULT_GREY: [f64; 3] = [0.5, 0.5, 0.5];
+
+/// Name of the material given to faces that have none (made unique if the file uses it).
+pub const DEFAULT_MATERIAL: &str = "default grey";
+
+/// How many cases a counting warning names.
+const NAMED_CASES: usize = 5;
+
+/// How to read an OBJ file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct ObjOptions {
+    /// Every repair and every ignored statement is an error (see the module documentation).
+    pub strict: bool,
+}
+
+/// An OBJ scene and what was repaired or ignored on the way.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ObjScene {
+    /// The scene.
+    pub scene: Scene,
+    /// One line per kind of repair or ignored statement, each starting with the file.
+    pub warnings: Vec<String>,
+}
+
+/// Loads an OBJ file and the MTL files it names (relative to the OBJ's directory), with the
+/// default (lenient) options; the warnings are dropped (see [`load_obj_with`]).
 ///
 /// The scene is named after the file stem and has no camera. Errors name the file as given
 /// in `path`.
 pub fn load_obj(path: &Path) -> Result<Scene, SceneError> {
+    Ok(load_obj_with(path, &ObjOptions::default())?.scene)
+}
+
+/// Loads an OBJ file and the MTL files it names, with its warnings.
+pub fn load_obj_with(path: &Path, options: &ObjOptions) -> Result<ObjScene, SceneError> {
     let file = path.display().to_string();
     let text = std::fs::read_to_string(path).map_err(|source| SceneError::Read {
         file: file.clone(),
         source,
     })?;
     let dir = path.parent().unwrap_or(Path::new("")).to_path_buf();
-    parse_obj(&text, &file, |library| {
-        std::fs::read_to_string(dir.join(library))
-    })
+    parse_obj_with(
+        &text,
+        &file,
+        |library| std::fs::read_to_string(dir.join(library)),
+        options,
+    )
+}
+
+/// Parses OBJ text already in memory with the default options, dropping the warnings (see
+/// [`parse_obj_with`]).
+pub fn parse_obj(
+    obj: &str,
+    file_label: &str,
+    load_mtl: impl Fn(&Path) -> Result<String, std::io::Error>,
+) -> Result<Scene, SceneError> {
+    Ok(parse_obj_with(obj, file_label, load_mtl, &ObjOptions::default())?.scene)
 }
 
 /// Parses OBJ text already in memory.
@@ -51,15 +116,19 @@ pub fn load_obj(path: &Path) -> Result<Scene, SceneError> {
 /// after its stem. `load_mtl` is called with each `mtllib` path exactly as written in the OBJ
 /// and returns the MTL text; MTL errors are labelled with that path joined onto the label's
 /// directory.
-pub fn parse_obj(
+pub fn parse_obj_with(
     obj: &str,
     file_label: &str,
     load_mtl: impl Fn(&Path) -> Result<String, std::io::Error>,
-) -> Result<Scene, SceneError> {
+    options: &ObjOptions,
+) -> Result<ObjScene, SceneError> {
     let obj = obj.strip_prefix('\u{feff}').unwrap_or(obj);
     let scan = scan_obj(obj, file_label)?;
 
-    let mut library = MaterialLibrary::default();
+    let mut library = MaterialLibrary {
+        strict: options.strict,
+        ..MaterialLibrary::default()
+    };
     for (line, name) in &scan.libraries {
         let label = sibling_label(file_label, name);
         let text =
@@ -70,6 +139,19 @@ pub fn parse_obj(
             })?;
         library.read_mtl(&text, &label)?;
     }
+    let mut warnings = Vec::new();
+    if let Some(w) = library
+        .clamped
+        .warning(&format!("reflectance ≥ 1 clamped to {MAX_REFLECTANCE}"))
+    {
+        warnings.push(w);
+    }
+    if let Some(w) = library.ignored_warning() {
+        warnings.push(w);
+    }
+    let mut no_material = Cases::default();
+    let mut zero_area = Cases::default();
+    let mut first_zero_area: Option<SceneError> = None;
     for usage in &scan.usemtls {
         if !library.ids.contains_key(&usage.material) {
             return Err(SceneError::UnknownMaterial {
@@ -81,16 +163,18 @@ pub fn parse_obj(
     }
 
     // Materials are bound by name from the scan, so tobj gets none.
-    let options = tobj::LoadOptions {
+    let tobj_options = tobj::LoadOptions {
         triangulate: false,
         single_index: false,
         ..Default::default()
     };
-    let (models, _) = tobj::load_obj_buf(&mut obj.as_bytes(), &options, |_| Ok(Default::default()))
-        .map_err(|e| SceneError::Syntax {
-            at: Location::file(file_label),
-            message: format!("OBJ parser: {e}"),
-        })?;
+    let (models, _) = tobj::load_obj_buf(&mut obj.as_bytes(), &tobj_options, |_| {
+        Ok(Default::default())
+    })
+    .map_err(|e| SceneError::Syntax {
+        at: Location::file(file_label),
+        message: format!("OBJ parser: {e}"),
+    })?;
 
     let mut records = scan.faces.iter();
     let mut surfaces = Vec::new();
@@ -116,19 +200,29 @@ pub fn parse_obj(
                 continue;
             }
             let at = || Location::line(file_label, record.line);
-            let Some(name) = &record.material else {
-                return Err(SceneError::NoMaterial {
-                    at: at(),
-                    object: record.object.clone(),
-                });
-            };
-            // Every `usemtl` name was checked above; this only keeps the lookup panic-free.
-            let Some(&material) = library.ids.get(name) else {
-                return Err(SceneError::UnknownMaterial {
-                    at: at(),
-                    object: record.object.clone(),
-                    material: name.clone(),
-                });
+            let material = match &record.material {
+                None if options.strict => {
+                    return Err(SceneError::NoMaterial {
+                        at: at(),
+                        object: record.object.clone(),
+                    })
+                }
+                None => {
+                    no_material.add(at(), &record.object);
+                    library.default_grey()
+                }
+                // Every `usemtl` name was checked above; this only keeps the lookup
+                // panic-free.
+                Some(name) => match library.ids.get(name) {
+                    Some(&material) => material,
+                    None => {
+                        return Err(SceneError::UnknownMaterial {
+                            at: at(),
+                            object: record.object.clone(),
+                            material: name.clone(),
+                        })
+                    }
+                },
             };
             let mut vertices = Vec::with_capacity(arity);
             for &i in indices {
@@ -138,11 +232,27 @@ pub fn parse_obj(
                 };
                 vertices.push(DVec3::new(real(p[0]), real(p[1]), real(p[2])));
             }
-            let polygons = split_into_convex(vertices).map_err(|source| SceneError::Geometry {
-                at: at(),
-                object: record.object.clone(),
-                source,
-            })?;
+            let polygons = match split_into_convex(vertices) {
+                Ok(polygons) => polygons,
+                Err(
+                    source @ (GeometryError::Degenerate { .. } | GeometryError::TooFewVertices(_)),
+                ) if !options.strict => {
+                    zero_area.add(at(), &record.object);
+                    first_zero_area.get_or_insert(SceneError::Geometry {
+                        at: at(),
+                        object: record.object.clone(),
+                        source,
+                    });
+                    continue;
+                }
+                Err(source) => {
+                    return Err(SceneError::Geometry {
+                        at: at(),
+                        object: record.object.clone(),
+                        source,
+                    })
+                }
+            };
             surfaces.extend(polygons.into_iter().map(|polygon| Surface {
                 object: record.object.clone(),
                 group: record.group.clone(),
@@ -159,17 +269,69 @@ pub fn parse_obj(
         return Err(disagreement(file_label, Some(record.line)));
     }
     if surfaces.is_empty() {
-        return Err(SceneError::Empty {
+        // Nothing left after skipping: the first skipped face says why better than "empty".
+        return Err(first_zero_area.unwrap_or_else(|| SceneError::Empty {
             file: file_label.to_owned(),
-        });
+        }));
     }
-    Ok(Scene {
-        name: scene_name(file_label),
-        materials: library.materials,
-        surfaces,
-        lights: Vec::new(),
-        camera: None,
+    if let Some(w) = zero_area.warning("zero-area faces skipped") {
+        warnings.push(w);
+    }
+    if let Some(w) = no_material.warning(&format!(
+        "faces without a material (no 'usemtl' before them) given '{}', ρ = {}",
+        library.materials[library.default_grey.map_or(0, |m| m.0 as usize)].name,
+        DEFAULT_GREY[0]
+    )) {
+        warnings.push(w);
+    }
+    Ok(ObjScene {
+        scene: Scene {
+            name: scene_name(file_label),
+            materials: library.materials,
+            surfaces,
+            lights: Vec::new(),
+            camera: None,
+        },
+        warnings,
     })
+}
+
+/// Cases of one kind of repair: how many, and where the first few were.
+#[derive(Debug, Default)]
+pub(crate) struct Cases {
+    file: Option<String>,
+    count: usize,
+    first: Vec<String>,
+}
+
+impl Cases {
+    /// Counts one case at `at`, about `what` (an object or material name).
+    pub(crate) fn add(&mut self, at: Location, what: &str) {
+        self.count += 1;
+        if self.first.len() < NAMED_CASES {
+            let file = self.file.get_or_insert_with(|| at.file.clone());
+            let place = match at.line {
+                Some(line) if *file == at.file => format!("line {line}"),
+                _ => at.to_string(),
+            };
+            self.first.push(format!("{place} '{what}'"));
+        }
+    }
+
+    /// "file: N <what>: line a 'x', line b 'y', …", or `None` if there were none.
+    pub(crate) fn warning(&self, what: &str) -> Option<String> {
+        let file = self.file.as_ref()?;
+        let more = if self.count > self.first.len() {
+            ", …"
+        } else {
+            ""
+        };
+        Some(format!(
+            "{file}: {} {what}: {}{more}",
+            self.count,
+            self.first.join(", ")
+        ))
+    }
 }
 
 /// The scene name for a file: its stem, or "scene".
@@ -236,9 +398,77 @@ struct MaterialLibrary {
     materials: Vec<Material>,
     ids: HashMap<String, MaterialId>,
     defined_at: HashMap<String, Location>,
+    /// Repairs are errors.
+    strict: bool,
+    /// Materials whose reflectance was clamped.
+    clamped: Cases,
+    /// Ignored statements: keyword → (materials using it, first place).
+    ignored: Vec<(String, usize, Location)>,
+    /// The material given to faces without one, once it exists.
+    default_grey: Option<MaterialId>,
 }
 
 impl MaterialLibrary {
+    /// The default grey material, added on first use.
+    fn default_grey(&mut self) -> MaterialId {
+        if let Some(id) = self.default_grey {
+            return id;
+        }
+        let mut name = DEFAULT_MATERIAL.to_owned();
+        let mut k = 2;
+        while self.ids.contains_key(&name) {
+            name = format!("{DEFAULT_MATERIAL} {k}");
+            k += 1;
+        }
+        let id = MaterialId(self.materials.len() as u32);
+        self.ids.insert(name.clone(), id);
+        self.materials
+            .push(Material::new(name, DEFAULT_GREY, [0.0; 3]));
+        self.default_grey = Some(id);
+        id
+    }
+
+    /// Records an ignored statement of the material defined at `at`.
+    fn ignore(&mut self, keyword: &str, at: &Location) -> Result<(), SceneError> {
+        if self.strict {
+            return Err(SceneError::Syntax {
+                at: at.clone(),
+                message: format!(
+                    "'{keyword}' ({}) is not supported (Lambertian, untextured materials only; \
+                     without --strict it is ignored with a warning)",
+                    ignored_kind(keyword)
+                ),
+            });
+        }
+        match self.ignored.iter_mut().find(|(k, _, _)| k == keyword) {
+            Some((_, count, _)) => *count += 1,
+            None => self.ignored.push((keyword.to_owned(), 1, at.clone())),
+        }
+        Ok(())
+    }
+
+    /// One warning naming every ignored statement, how often and where first.
+    fn ignored_warning(&self) -> Option<String> {
+        let (_, _, first) = self.ignored.first()?;
+        let items: Vec<String> = self
+            .ignored
+            .iter()
+            .map(|(keyword, count, at)| {
+                let times = if *count == 1 {
+                    String::new()
+                } else {
+                    format!(" ×{count}")
+                };
+                format!("{keyword} ({}){times} first at {at}", ignored_kind(keyword))
+            })
+            .collect();
+        Some(format!(
+            "{}: ignored material statements (materials are Lambertian and untextured): {}",
+            first.file,
+            items.join("; ")
+        ))
+    }
+
     /// Validates MTL text line by line, parses it with tobj and adds its materials.
     fn read_mtl(&mut self, text: &str, label: &str) -> Result<(), SceneError> {
         let text = text.strip_prefix('\u{feff}').unwrap_or(text);
@@ -274,6 +504,9 @@ impl MaterialLibrary {
                     if let Some(problem) = mtl_statement_problem(keyword, rest) {
                         return Err(syntax(problem));
                     }
+                    if changes_the_look(keyword, rest) {
+                        self.ignore(keyword, &at)?;
+                    }
                 }
             }
         }
@@ -294,11 +527,23 @@ impl MaterialLibrary {
                     problem: "has no 'Kd' (diffuse reflectance)".to_owned(),
                 });
             };
-            let material = Material::new(
+            let mut material = Material::new(
                 m.name,
                 diffuse.map(real),
                 m.emissive.unwrap_or_default().map(real),
             );
+            let too_bright = material
+                .reflectance
+                .iter()
+                .any(|r| r.is_finite() && *r >= 1.0);
+            if too_bright && !self.strict {
+                self.clamped.add(at.clone(), &material.name);
+                for r in &mut material.reflectance {
+                    if r.is_finite() && *r >= 1.0 {
+                        *r = MAX_REFLECTANCE;
+                    }
+                }
+            }
             if let Some(problem) = material_problem(&material) {
                 return Err(SceneError::Material {
                     at,
@@ -311,6 +556,36 @@ impl MaterialLibrary {
             self.materials.push(material);
         }
         Ok(())
+    }
+}
+
+/// Whether an MTL statement asks for something the Lambertian, untextured model ignores and
+/// that changes how the surface looks: a texture map, specular reflection, transparency.
+/// Statements at their neutral values (`Ks 0 0 0`, `d 1`, `Tr 0`) are not reported.
+fn changes_the_look(keyword: &str, rest: &str) -> bool {
+    let numbers: Vec<f64> = rest
+        .split_whitespace()
+        .map_while(|w| w.parse().ok())
+        .collect();
+    let any = |pred: fn(f64) -> bool| numbers.iter().any(|&x| pred(x));
+    let lower = keyword.to_ascii_lowercase();
+    match lower.as_str() {
+        k if k.starts_with("map_") => true,
+        "bump" | "disp" | "decal" | "refl" | "norm" => true,
+        "ks" | "pm" | "pr" => any(|x| x > 0.0),
+        "d" => any(|x| x < 1.0),
+        "tr" => any(|x| x > 0.0),
+        "tf" => any(|x| x < 1.0),
+        _ => false,
+    }
+}
+
+/// What an ignored statement is, for the warning.
+fn ignored_kind(keyword: &str) -> &'static str {
+    match keyword.to_ascii_lowercase().as_str() {
+        "ks" | "pm" | "pr" => "specular",
+        "d" | "tr" | "tf" => "transparency",
+        _ => "texture map",
     }
 }
 

@@ -1,5 +1,5 @@
 //! Our own scene file: JSON that holds a whole scene (materials, surfaces, camera, settings)
-//! and can pull in OBJ files.
+//! and can pull in OBJ, glTF and MGF files.
 //!
 //! ```json
 //! {
@@ -23,14 +23,19 @@
 //! silently fall back to a default. Lengths are in metres.
 //! - `name`: the scene's name; default the file stem.
 //! - `materials`: `name` (unique), `reflectance` ρ per RGB channel in [0, 1), `emission`
-//!   L_e in W·m⁻²·sr⁻¹ per channel, finite and ≥ 0 (default 0; front side only).
+//!   L_e in W·m⁻²·sr⁻¹ per channel, finite and ≥ 0 (default 0; front side only),
+//!   `two_sided` (default false: both sides reflect, see [`Material::two_sided`]) and
+//!   `two_sided_emission` (default false: with `two_sided`, the back emits too). Values here
+//!   are exact: out-of-range values are errors, never clamped.
 //! - `surfaces`: `object` (non-empty; reports aggregate by it), `group` (default empty),
 //!   `material` (a name from `materials` or from an included file), `vertices` in metres,
 //!   counter-clockwise seen from the lit side. A non-planar quad is split into two triangles
 //!   and a planar non-convex polygon is ear-clipped, as for OBJ faces.
-//! - `include`: OBJ files, relative to this file. Their surfaces come first, in order, then
-//!   the inline surfaces; their MTL materials join `materials` (a name defined twice must
-//!   have the same values).
+//! - `include`: OBJ, glTF (`.gltf`, `.glb`) and MGF files, relative to this file, read by
+//!   the format registry ([`crate::io::formats`]) with the same options as the scene file.
+//!   Their surfaces come first, in order, then the inline surfaces; their materials join
+//!   `materials` (a name defined twice must have the same values); their point and spot
+//!   lights join the scene's, and the first included camera is used when the file has none.
 //! - `camera`: a pinhole camera; `up` defaults to +y, `fov_deg` is the vertical field of view
 //!   in degrees, in (0, 180). Without a camera, renderers frame the scene's bounds.
 //! - `lights`: point, spot and goniometric (IES, EULUMDAT) light sources with position,
@@ -47,7 +52,8 @@
 
 use crate::geometry::split_into_convex;
 use crate::io::error::{Location, SceneError};
-use crate::io::obj::{load_obj, material_problem, scene_name};
+use crate::io::formats::{load_any_with, load_geometry, LoadOptions};
+use crate::io::obj::{material_problem, scene_name};
 use crate::scene::{Camera, Material, MaterialId, Origin, Scene, Surface};
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
@@ -108,6 +114,8 @@ pub struct LoadedScene {
     pub scene: Scene,
     /// The settings stored in the file.
     pub settings: SceneSettings,
+    /// What the readers repaired or ignored, one line each, starting with the file.
+    pub warnings: Vec<String>,
 }
 
 /// The file as serde sees it; see the module documentation.
@@ -137,6 +145,10 @@ struct MaterialEntry {
     reflectance: [f64; 3],
     #[serde(default, skip_serializing_if = "is_default")]
     emission: [f64; 3],
+    #[serde(default, skip_serializing_if = "is_default")]
+    two_sided: bool,
+    #[serde(default, skip_serializing_if = "is_default")]
+    two_sided_emission: bool,
 }
 
 #[derive(Debug, Serialize, Deserialize)]
@@ -172,16 +184,30 @@ fn is_default<T: Default + PartialEq>(value: &T) -> bool {
 /// Errors name the file; JSON errors also give line and column, and errors inside included
 /// files name those files and their lines.
 pub fn load_scene_file(path: &Path) -> Result<LoadedScene, SceneError> {
+    load_scene_file_with(path, &LoadOptions::default())
+}
+
+/// [`load_scene_file`] with reader options (passed on to included files).
+pub fn load_scene_file_with(path: &Path, options: &LoadOptions) -> Result<LoadedScene, SceneError> {
     let file = path.display().to_string();
     let text = std::fs::read_to_string(path).map_err(|source| SceneError::Read {
         file: file.clone(),
         source,
     })?;
-    parse_scene_file(&text, path)
+    parse_scene_file_with(&text, path, options)
 }
 
 /// Parses scene-file JSON; `path` labels errors and resolves `include`s (it is not read).
 pub fn parse_scene_file(json: &str, path: &Path) -> Result<LoadedScene, SceneError> {
+    parse_scene_file_with(json, path, &LoadOptions::default())
+}
+
+/// [`parse_scene_file`] with reader options (passed on to included files).
+pub fn parse_scene_file_with(
+    json: &str,
+    path: &Path,
+    options: &LoadOptions,
+) -> Result<LoadedScene, SceneError> {
     let file = path.display().to_string();
     let json = json.strip_prefix('\u{feff}').unwrap_or(json);
     let parsed: SceneFile = serde_json::from_str(json).map_err(|e| json_error(&file, &e))?;
@@ -220,14 +246,14 @@ pub fn parse_scene_file(json: &str, path: &Path) -> Result<LoadedScene, SceneErr
     };
 
     let dir = path.parent().unwrap_or(Path::new(""));
+    let mut warnings = Vec::new();
+    let mut included_camera = None;
     for include in &parsed.include {
         let include_path = dir.join(include);
-        if !has_extension(&include_path, "obj") {
-            return Err(SceneError::UnknownFormat {
-                file: include_path.display().to_string(),
-            });
-        }
-        let included = load_obj(&include_path)?;
+        let (included, included_warnings) = load_geometry(&include_path, options)?;
+        warnings.extend(included_warnings);
+        included_camera = included_camera.or(included.camera);
+        scene.lights.extend(included.lights);
         let from = include_path.display().to_string();
         let mut remap = Vec::with_capacity(included.materials.len());
         for material in included.materials {
@@ -242,7 +268,11 @@ pub fn parse_scene_file(json: &str, path: &Path) -> Result<LoadedScene, SceneErr
     }
 
     for entry in parsed.materials {
-        let material = Material::new(entry.name, entry.reflectance, entry.emission);
+        let material = Material {
+            two_sided: entry.two_sided,
+            two_sided_emission: entry.two_sided_emission,
+            ..Material::new(entry.name, entry.reflectance, entry.emission)
+        };
         if let Some(problem) = material_problem(&material) {
             return Err(SceneError::Material {
                 at: whole(),
@@ -300,12 +330,16 @@ pub fn parse_scene_file(json: &str, path: &Path) -> Result<LoadedScene, SceneErr
         scene.camera = Some(camera);
     }
     scene.lights = crate::io::lights::lights_from_entries(&parsed.lights, dir, &file)?;
+    if scene.camera.is_none() {
+        scene.camera = included_camera;
+    }
     if scene.surfaces.is_empty() {
         return Err(SceneError::Empty { file });
     }
     Ok(LoadedScene {
         scene,
         settings: parsed.settings,
+        warnings,
     })
 }
 
@@ -342,6 +376,8 @@ pub fn scene_to_json(scene: &Scene, settings: &SceneSettings) -> Value {
                 name: m.name.clone(),
                 reflectance: m.reflectance,
                 emission: m.emission,
+                two_sided: m.two_sided,
+                two_sided_emission: m.two_sided && m.two_sided_emission,
             })
             .collect(),
         surfaces: scene
@@ -389,26 +425,11 @@ pub fn save_scene_file(
     crate::io::atomic::write_atomically(path, |w| w.write_all(text.as_bytes())).map_err(write_error)
 }
 
-/// Loads a scene by extension: `.obj` with [`load_obj`] (default settings), `.json` with
-/// [`load_scene_file`]; anything else is [`SceneError::UnknownFormat`].
+/// Loads a scene by extension with the default options (see [`crate::io::formats`], the
+/// registry): `.obj`, `.gltf`/`.glb`, `.mgf` (default settings) or `.json`; anything else is
+/// [`SceneError::UnknownFormat`].
 pub fn load_any(path: &Path) -> Result<LoadedScene, SceneError> {
-    if has_extension(path, "obj") {
-        Ok(LoadedScene {
-            scene: load_obj(path)?,
-            settings: SceneSettings::default(),
-        })
-    } else if has_extension(path, "json") {
-        load_scene_file(path)
-    } else {
-        Err(SceneError::UnknownFormat {
-            file: path.display().to_string(),
-        })
-    }
-}
-
-fn has_extension(path: &Path, extension: &str) -> bool {
-    path.extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case(extension))
+    load_any_with(path, &LoadOptions::default())
 }
 
 /// serde_json's message without its trailing " at line L column C", which we give separately.
@@ -476,13 +497,15 @@ fn write_pretty(out: &mut String, value: &Value, indent: usize) {
 /// Keys in the order a person wants to read them (short things before the long surface list,
 /// settings in [`SceneSettings`] order); `serde_json::Map` would sort them alphabetically.
 /// Unknown keys go last.
-const KEY_ORDER: [&str; 27] = [
+const KEY_ORDER: [&str; 29] = [
     "name",
     "object",
     "group",
     "material",
     "reflectance",
     "emission",
+    "two_sided",
+    "two_sided_emission",
     "vertices",
     "eye",
     "target",

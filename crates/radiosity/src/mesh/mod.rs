@@ -9,9 +9,20 @@
 //! Quads are divided on a bilinear lattice, triangles (and the fan triangles of n-gons) on a
 //! barycentric lattice, so elements of one surface share their vertices: the display mesh has
 //! no cracks inside a surface.
+//!
+//! Two-sided surfaces ([`crate::scene::Material::two_sided`]) are meshed once and then given
+//! a back-to-back twin: a second surface with the same elements, corners in reverse order
+//! (normal reversed), its own vertices (so smoothing never blends the two sides), its own
+//! patches, the same reflectance and no emission unless the material asks for
+//! `two_sided_emission`. The two sides are ordinary one-sided surfaces for everything
+//! downstream: each side's elements see only the half-space in front of them, and the shared
+//! plane blocks light from crossing (both sides are in the visibility structure, and each is
+//! opaque from both directions), so light reaching one side never reaches the other through
+//! the surface. The element budget (`elements`) counts both sides.
 
 pub mod contacts;
 pub mod refine;
+pub mod two_sided;
 
 pub use contacts::split_at_contacts;
 pub use refine::RefineOptions;
@@ -154,6 +165,9 @@ pub struct Mesh {
     /// Total flux of the scene's light sources, W per channel (emitted power besides the
     /// emitting surfaces').
     pub light_power: [f64; 3],
+    /// The back-to-back twin of each surface of a two-sided material, indexed like
+    /// `surfaces` (both ways; shorter or empty where no surface has one).
+    pub twin: Vec<Option<u32>>,
 }
 
 impl Mesh {
@@ -166,7 +180,12 @@ impl Mesh {
             return Err(MeshError::BadPatchSubdivision(options.patch_subdivision));
         }
         let pieces = split_at_contacts(scene);
-        let polygons: Vec<&Polygon> = pieces.iter().map(|(_, p)| p).collect();
+        let two_sided = |si: usize| scene.material(&scene.surfaces[si]).two_sided;
+        // Both sides of a two-sided piece take their share of the element budget.
+        let polygons: Vec<&Polygon> = pieces
+            .iter()
+            .flat_map(|(si, p)| std::iter::repeat_n(p, 1 + usize::from(two_sided(*si))))
+            .collect();
         let size = match options.max_element_size {
             Some(h) if h.is_finite() && h > 0.0 => h,
             Some(h) => return Err(MeshError::BadElementSize(h)),
@@ -201,8 +220,9 @@ impl Mesh {
             surface_polygons: Vec::new(),
             direct: Vec::new(),
             light_power: [0.0; 3],
+            twin: Vec::new(),
         };
-        for (index, (scene_surface, polygon)) in pieces.iter().enumerate() {
+        for (scene_surface, polygon) in pieces.iter() {
             let surface = &scene.surfaces[*scene_surface];
             let material = scene.material(surface);
             let object = objects
@@ -216,12 +236,18 @@ impl Mesh {
                 exitance: material.exitance(),
             });
             mesh.surface_polygons.push(polygon.clone());
-            mesh.mesh_surface(
-                SurfaceId(index as u32),
-                polygon,
-                size,
-                options.patch_subdivision,
-            );
+            let (first_vertex, first_element, first_patch) =
+                (mesh.vertices.len(), mesh.elements.len(), mesh.patches.len());
+            let id = SurfaceId((mesh.surfaces.len() - 1) as u32);
+            mesh.mesh_surface(id, polygon, size, options.patch_subdivision);
+            if material.two_sided {
+                let back_exitance = if material.two_sided_emission {
+                    material.exitance()
+                } else {
+                    [0.0; 3]
+                };
+                mesh.push_twin(id, first_vertex, first_element, first_patch, back_exitance);
+            }
         }
         Ok(mesh)
     }
@@ -422,6 +448,79 @@ impl Mesh {
             parent: None,
             depth: 0,
         });
+    }
+
+    /// Adds the back-to-back twin of surface `front`, whose vertices, elements and patches
+    /// start at the given indices and run to the end of the mesh: the same geometry with the
+    /// corners reversed, its own copies of the vertices, emitting `exitance` (W·m⁻²).
+    fn push_twin(
+        &mut self,
+        front: SurfaceId,
+        first_vertex: usize,
+        first_element: usize,
+        first_patch: usize,
+        exitance: [f64; 3],
+    ) {
+        let twin = SurfaceId(self.surfaces.len() as u32);
+        self.twin.resize(twin.0 as usize + 1, None);
+        self.twin[front.0 as usize] = Some(twin.0);
+        self.twin[twin.0 as usize] = Some(front.0);
+        let data = SurfaceData {
+            exitance,
+            ..self.surfaces[front.0 as usize].clone()
+        };
+        self.surfaces.push(data);
+        let reversed = |p: &Polygon| {
+            let mut v = p.vertices().to_vec();
+            v.reverse();
+            Polygon::new_unchecked(v)
+        };
+        let outline = reversed(&self.surface_polygons[front.0 as usize]);
+        self.surface_polygons.push(outline);
+        let (end_vertex, end_element, end_patch) =
+            (self.vertices.len(), self.elements.len(), self.patches.len());
+        let vertex_shift = (end_vertex - first_vertex) as u32;
+        let patch_shift = (end_patch - first_patch) as u32;
+        let element_shift = (end_element - first_element) as u32;
+        self.vertices.extend_from_within(first_vertex..end_vertex);
+        for e in first_element..end_element {
+            let front_element = &self.elements[e];
+            // Keep the first corner, reverse the rest: same cell, opposite winding.
+            let mut corners: Vec<u32> = front_element
+                .corners
+                .iter()
+                .map(|c| c + vertex_shift)
+                .collect();
+            corners[1..].reverse();
+            let element = Element {
+                surface: twin.0,
+                patch: PatchId(front_element.patch.0 + patch_shift),
+                corners,
+                centre: front_element.centre,
+                normal: -front_element.normal,
+                area: front_element.area,
+                parent: None,
+                depth: 0,
+            };
+            self.elements.push(element);
+        }
+        for p in first_patch..end_patch {
+            let patch = &self.patches[p];
+            let twin_patch = Patch {
+                surface: twin.0,
+                polygon: reversed(&patch.polygon),
+                elements: patch.elements.start + element_shift..patch.elements.end + element_shift,
+            };
+            self.patches.push(twin_patch);
+        }
+    }
+
+    /// Whether surfaces `a` and `b` are one sheet: the same surface, or the two sides of a
+    /// two-sided one. They exchange no light (the form factor between the two sides of one
+    /// plane is zero; computed from element centres that round off the plane it could be
+    /// anything, even NaN), so form-factor engines skip such pairs.
+    pub fn same_sheet(&self, a: u32, b: u32) -> bool {
+        a == b || self.twin.get(a as usize).copied().flatten() == Some(b)
     }
 
     fn push_patch(&mut self, surface: SurfaceId, polygon: Polygon, first: u32) {

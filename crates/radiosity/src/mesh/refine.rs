@@ -192,6 +192,7 @@ pub fn refine(mesh: &Mesh, marked: &[bool]) -> Mesh {
         surface_polygons: mesh.surface_polygons.clone(),
         direct,
         light_power: mesh.light_power,
+        twin: mesh.twin.clone(),
     }
 }
 
