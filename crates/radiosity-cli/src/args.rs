@@ -40,6 +40,10 @@ pub enum Command {
     Progressive(crate::cmd_progressive::ProgressiveArgs),
     /// Run every solver on the same mesh and plot their error against time and iterations.
     Compare(crate::cmd_compare::CompareArgs),
+    /// Print the shell completion script for bash, zsh, fish, elvish or powershell.
+    Completions(crate::cmd_shell::CompletionsArgs),
+    /// Print the manual page (roff), or write one page per command with -o DIR.
+    Man(crate::cmd_shell::ManArgs),
 }
 
 /// Options that decide how a scene is meshed and solved.

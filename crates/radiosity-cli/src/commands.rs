@@ -25,6 +25,8 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Formfactor(args) => crate::cmd_formfactor::run(args),
         Command::Progressive(args) => crate::cmd_progressive::run(args),
         Command::Compare(args) => crate::cmd_compare::run(args),
+        Command::Completions(args) => crate::cmd_shell::completions(args),
+        Command::Man(args) => crate::cmd_shell::man(args),
     }
 }
 
@@ -44,7 +46,8 @@ pub(crate) fn load_scene(path: Option<&Path>) -> Result<Loaded> {
             file: None,
         }),
         Some(p) => {
-            let loaded = load_any(p).with_context(|| format!("loading {}", p.display()))?;
+            // Scene errors name the file (and line, object) themselves.
+            let loaded = load_any(p)?;
             Ok(Loaded {
                 scene: loaded.scene,
                 file_settings: loaded.settings,
@@ -136,8 +139,7 @@ fn solve(args: SolveCmdArgs) -> Result<()> {
     }
     if let Some(path) = &args.save {
         SolutionFile::new(&scene.name, scene.camera, &solved.mesh, &solved.solution)
-            .save(path)
-            .with_context(|| format!("saving solution {}", path.display()))?;
+            .save(path)?;
     }
     if args.report.is_none() && args.save.is_none() {
         // Nothing asked to be written: print the report so the solve is not wasted.
@@ -164,8 +166,8 @@ fn render(args: RenderArgs) -> Result<()> {
     let (vertices, elements, radiosity, camera, output, settings) = if let Some(path) =
         &args.solution
     {
-        let file = SolutionFile::load(path)
-            .with_context(|| format!("loading solution {}", path.display()))?;
+        // Solution-file errors name the file and the key themselves.
+        let file = SolutionFile::load(path)?;
         let settings = resolve(None, &flags)?;
         let output = output_for(&file.scene)?;
         let base = file.camera.map(Camera::from).unwrap_or_default();

@@ -178,6 +178,15 @@ pub enum SceneError {
         /// The file, as the user named it.
         file: String,
     },
+    /// An error in a file included by a scene file; the message names both.
+    #[error("{file}: include {source}")]
+    Included {
+        /// The scene file that includes it, as the user named it.
+        file: String,
+        /// The error in the included file (which names that file).
+        #[source]
+        source: Box<SceneError>,
+    },
     /// The input defines no surfaces at all.
     #[error("{file}: scene has no surfaces")]
     Empty {

@@ -3,6 +3,7 @@
 pub mod atomic;
 pub mod error;
 pub mod obj;
+pub mod open;
 pub mod scene_file;
 pub mod solution_file;
 

@@ -24,6 +24,7 @@
 
 use crate::geometry::split_into_convex;
 use crate::io::error::{Location, SceneError};
+use crate::io::open::{read_to_string_checked, Kind};
 use crate::scene::{Material, MaterialId, Origin, Scene, Surface};
 use glam::DVec3;
 use std::collections::HashMap;
@@ -35,13 +36,13 @@ use std::path::{Path, PathBuf};
 /// in `path`.
 pub fn load_obj(path: &Path) -> Result<Scene, SceneError> {
     let file = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|source| SceneError::Read {
+    let text = read_to_string_checked(path, Kind::Geometry).map_err(|source| SceneError::Read {
         file: file.clone(),
         source,
     })?;
     let dir = path.parent().unwrap_or(Path::new("")).to_path_buf();
     parse_obj(&text, &file, |library| {
-        std::fs::read_to_string(dir.join(library))
+        read_to_string_checked(&dir.join(library), Kind::Materials)
     })
 }
 

@@ -46,6 +46,7 @@
 use crate::geometry::split_into_convex;
 use crate::io::error::{Location, SceneError};
 use crate::io::obj::{load_obj, material_problem, scene_name};
+use crate::io::open::{read_to_string_checked, Kind};
 use crate::scene::{Camera, Material, MaterialId, Origin, Scene, Surface};
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
@@ -165,7 +166,7 @@ fn is_default<T: Default + PartialEq>(value: &T) -> bool {
 /// files name those files and their lines.
 pub fn load_scene_file(path: &Path) -> Result<LoadedScene, SceneError> {
     let file = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|source| SceneError::Read {
+    let text = read_to_string_checked(path, Kind::Geometry).map_err(|source| SceneError::Read {
         file: file.clone(),
         source,
     })?;
@@ -214,12 +215,16 @@ pub fn parse_scene_file(json: &str, path: &Path) -> Result<LoadedScene, SceneErr
     let dir = path.parent().unwrap_or(Path::new(""));
     for include in &parsed.include {
         let include_path = dir.join(include);
+        let in_include = |source: SceneError| SceneError::Included {
+            file: file.clone(),
+            source: Box::new(source),
+        };
         if !has_extension(&include_path, "obj") {
-            return Err(SceneError::UnknownFormat {
+            return Err(in_include(SceneError::UnknownFormat {
                 file: include_path.display().to_string(),
-            });
+            }));
         }
-        let included = load_obj(&include_path)?;
+        let included = load_obj(&include_path).map_err(in_include)?;
         let from = include_path.display().to_string();
         let mut remap = Vec::with_capacity(included.materials.len());
         for material in included.materials {
@@ -302,7 +307,7 @@ pub fn parse_scene_file(json: &str, path: &Path) -> Result<LoadedScene, SceneErr
 
 /// What is wrong with a camera, if anything: it must be finite, look somewhere, have an `up`
 /// not parallel to the view direction and a field of view in (0°, 180°).
-fn camera_problem(camera: &Camera) -> Option<String> {
+pub(crate) fn camera_problem(camera: &Camera) -> Option<String> {
     if !(camera.eye.is_finite() && camera.target.is_finite() && camera.up.is_finite()) {
         return Some("eye, target and up must be finite".to_owned());
     }

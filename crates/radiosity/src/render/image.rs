@@ -189,7 +189,7 @@ impl Image {
     /// (half or uint channels are converted). Other channels (alpha, AOVs) are ignored.
     pub fn read_exr(path: &Path) -> Result<Image, ImageError> {
         use exr::prelude::*;
-        let bytes = std::fs::read(path).map_err(|source| ImageError::Io {
+        let bytes = crate::io::open::read_checked(path, crate::io::open::Kind::Geometry).map_err(|source| ImageError::Io {
             path: path.to_owned(),
             source,
         })?;
