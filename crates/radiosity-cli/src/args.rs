@@ -19,7 +19,7 @@ use std::path::PathBuf;
 #[command(name = "radiosity", version, about = "Physically based diffuse global illumination by the radiosity method", long_about = None)]
 pub struct Cli {
     /// Worker threads [default: one per core].
-    #[arg(long, global = true, value_name = "N")]
+    #[arg(long, global = true, value_name = "N", allow_hyphen_values = true)]
     pub threads: Option<usize>,
     /// The command.
     #[command(subcommand)]

@@ -51,7 +51,9 @@ pub fn man(args: ManArgs) -> Result<()> {
     for (name, page) in pages {
         let path = dir.join(format!("{name}.1"));
         radiosity::io::atomic::write_atomically(&path, |w| {
-            clap_mangen::Man::new(page).title(name.clone()).render(&mut *w)
+            clap_mangen::Man::new(page)
+                .title(name.clone())
+                .render(&mut *w)
         })
         .with_context(|| format!("writing {}", path.display()))?;
     }

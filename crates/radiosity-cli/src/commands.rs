@@ -138,8 +138,7 @@ fn solve(args: SolveCmdArgs) -> Result<()> {
         .with_context(|| format!("writing report {}", path.display()))?;
     }
     if let Some(path) = &args.save {
-        SolutionFile::new(&scene.name, scene.camera, &solved.mesh, &solved.solution)
-            .save(path)?;
+        SolutionFile::new(&scene.name, scene.camera, &solved.mesh, &solved.solution).save(path)?;
     }
     if args.report.is_none() && args.save.is_none() {
         // Nothing asked to be written: print the report so the solve is not wasted.

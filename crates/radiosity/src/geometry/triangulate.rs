@@ -43,7 +43,9 @@ impl Planar {
         let extent = (hi - lo).max(DVec2::splat(1e-300));
         // About one cell per vertex, square cells, at most 2048 along an axis.
         let n = points.len() as f64;
-        let cell = (extent.x * extent.y / n).sqrt().max(extent.max_element() / 2048.0);
+        let cell = (extent.x * extent.y / n)
+            .sqrt()
+            .max(extent.max_element() / 2048.0);
         let dims = (
             ((extent.x / cell).ceil() as usize).clamp(1, 2048),
             ((extent.y / cell).ceil() as usize).clamp(1, 2048),
@@ -69,7 +71,10 @@ impl Planar {
         &self,
         a: DVec2,
         b: DVec2,
-    ) -> (std::ops::RangeInclusive<usize>, std::ops::RangeInclusive<usize>) {
+    ) -> (
+        std::ops::RangeInclusive<usize>,
+        std::ops::RangeInclusive<usize>,
+    ) {
         let (x0, y0) = self.cell_of(a.min(b));
         let (x1, y1) = self.cell_of(a.max(b));
         (x0..=x1, y0..=y1)
@@ -187,7 +192,9 @@ pub(crate) fn ear_clip(planar: &Planar) -> Option<Vec<[usize; 3]>> {
                     if q == pa || q == pb || q == pc {
                         continue;
                     }
-                    if orient(pa, pb, q) >= 0.0 && orient(pb, pc, q) >= 0.0 && orient(pc, pa, q) >= 0.0
+                    if orient(pa, pb, q) >= 0.0
+                        && orient(pb, pc, q) >= 0.0
+                        && orient(pc, pa, q) >= 0.0
                     {
                         return false;
                     }

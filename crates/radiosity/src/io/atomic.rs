@@ -66,7 +66,10 @@ impl Drop for Temporary {
 
 /// The temporary files of the writes in progress now.
 pub fn temporaries() -> Vec<PathBuf> {
-    IN_FLIGHT.lock().map(|list| list.clone()).unwrap_or_default()
+    IN_FLIGHT
+        .lock()
+        .map(|list| list.clone())
+        .unwrap_or_default()
 }
 
 /// Removes every temporary file that a write in progress has created. For signal handlers:

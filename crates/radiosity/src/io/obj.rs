@@ -184,6 +184,11 @@ pub(crate) fn scene_name(file_label: &str) -> String {
 
 /// What is wrong with a material's values, if anything: ρ must be in [0, 1) and L_e finite
 /// and ≥ 0 in every channel.
+/// The largest emitted radiance accepted, W·m⁻²·sr⁻¹: 10¹² is some 10⁵ times the sun's
+/// surface (2·10⁷), and far enough below the largest `f64` (1.8·10³⁰⁸) that the solvers'
+/// sums and squares of radiosities stay finite.
+pub const MAX_EMISSION: f64 = 1e12;
+
 pub(crate) fn material_problem(material: &Material) -> Option<String> {
     const CHANNELS: [&str; 3] = ["red", "green", "blue"];
     for (&r, channel) in material.reflectance.iter().zip(CHANNELS) {
@@ -203,6 +208,11 @@ pub(crate) fn material_problem(material: &Material) -> Option<String> {
         }
         if e < 0.0 {
             return Some(format!("emission {e} ({channel}) must be ≥ 0"));
+        }
+        if e > MAX_EMISSION {
+            return Some(format!(
+                "emission {e:e} ({channel}) is beyond {MAX_EMISSION:e} W·m⁻²·sr⁻¹"
+            ));
         }
     }
     None
@@ -275,6 +285,13 @@ impl MaterialLibrary {
                     if let Some(problem) = mtl_statement_problem(keyword, rest) {
                         return Err(syntax(problem));
                     }
+                    // A property before any `newmtl` belongs to no material: it would be
+                    // dropped silently.
+                    if lines_of.is_empty() && MTL_PROPERTIES.contains(&keyword) {
+                        return Err(syntax(format!(
+                            "'{keyword}' before any 'newmtl': it belongs to no material"
+                        )));
+                    }
                 }
             }
         }
@@ -314,6 +331,11 @@ impl MaterialLibrary {
         Ok(())
     }
 }
+
+/// MTL statements that set a property of the current material.
+const MTL_PROPERTIES: [&str; 12] = [
+    "Ka", "Kd", "Ks", "Ke", "Ns", "Ni", "d", "Tr", "Tf", "illum", "map_Kd", "map_Ka",
+];
 
 /// Why tobj would reject (or panic on) an MTL statement other than `newmtl`, if it would.
 /// `rest` is the line after the keyword, trimmed.
@@ -681,5 +703,7 @@ mod tests {
         assert!(material_problem(&m([-0.1, 0.5, 0.5], [0.0; 3])).is_some());
         assert!(material_problem(&m([0.5; 3], [0.0, -1.0, 0.0])).is_some());
         assert!(material_problem(&m([0.5; 3], [f64::INFINITY, 0.0, 0.0])).is_some());
+        assert!(material_problem(&m([0.5; 3], [1e308, 0.0, 0.0])).is_some());
+        assert!(material_problem(&m([0.5; 3], [MAX_EMISSION, 0.0, 0.0])).is_none());
     }
 }

@@ -23,7 +23,7 @@
 //! silently fall back to a default. Lengths are in metres.
 //! - `name`: the scene's name; default the file stem.
 //! - `materials`: `name` (unique), `reflectance` ρ per RGB channel in [0, 1), `emission`
-//!   L_e in W·m⁻²·sr⁻¹ per channel, finite and ≥ 0 (default 0; front side only).
+//!   L_e in W·m⁻²·sr⁻¹ per channel, in [0, 10¹²] (default 0; front side only).
 //! - `surfaces`: `object` (non-empty; reports aggregate by it), `group` (default empty),
 //!   `material` (a name from `materials` or from an included file), `vertices` in metres,
 //!   counter-clockwise seen from the lit side. A non-planar quad is split into two triangles

@@ -164,9 +164,9 @@ impl SolutionFile {
     pub fn load(path: &Path) -> Result<Self, SolutionFileError> {
         let text = crate::io::open::read_to_string_checked(path, crate::io::open::Kind::Solution)
             .map_err(|source| SolutionFileError::Io {
-                path: path.to_path_buf(),
-                source,
-            })?;
+            path: path.to_path_buf(),
+            source,
+        })?;
         Self::parse(&text, path)
     }
 
@@ -184,10 +184,11 @@ impl SolutionFile {
                 path: path.to_path_buf(),
                 source,
             })?;
-        file.validate().map_err(|message| SolutionFileError::Invalid {
-            path: path.to_path_buf(),
-            message,
-        })?;
+        file.validate()
+            .map_err(|message| SolutionFileError::Invalid {
+                path: path.to_path_buf(),
+                message,
+            })?;
         Ok(file)
     }
 
@@ -219,7 +220,10 @@ impl SolutionFile {
             }
         }
         for (i, v) in self.vertices.iter().enumerate() {
-            if let Some(x) = v.iter().find(|x| !x.is_finite() || x.abs() > COORDINATE_LIMIT) {
+            if let Some(x) = v
+                .iter()
+                .find(|x| !x.is_finite() || x.abs() > COORDINATE_LIMIT)
+            {
                 return Err(format!(
                     "vertices[{i}]: coordinate {x} is not finite or beyond {COORDINATE_LIMIT:e} m"
                 ));
@@ -257,7 +261,11 @@ impl SolutionFile {
                     e.corners.len()
                 ));
             }
-            if let Some(&c) = e.corners.iter().find(|&&c| c as usize >= self.vertices.len()) {
+            if let Some(&c) = e
+                .corners
+                .iter()
+                .find(|&&c| c as usize >= self.vertices.len())
+            {
                 return Err(format!(
                     "elements[{i}].corners: vertex {c} does not exist ({} vertices)",
                     self.vertices.len()
@@ -279,7 +287,10 @@ impl SolutionFile {
                 ));
             }
         }
-        for (key, values) in [("radiosity", &self.radiosity), ("irradiance", &self.irradiance)] {
+        for (key, values) in [
+            ("radiosity", &self.radiosity),
+            ("irradiance", &self.irradiance),
+        ] {
             for (i, v) in values.iter().enumerate() {
                 for (c, &x) in v.iter().enumerate() {
                     if !(x.is_finite() && x >= 0.0) {
