@@ -278,10 +278,9 @@ impl SolutionFile {
                     self.surfaces.len()
                 ));
             }
-            if !(e.area.is_finite() && e.area >= 0.0)
-                || !e.centre.is_finite()
-                || !e.normal.is_finite()
-            {
+            let sound =
+                e.area.is_finite() && e.area >= 0.0 && e.centre.is_finite() && e.normal.is_finite();
+            if !sound {
                 return Err(format!(
                     "elements[{i}]: area, centre and normal must be finite (area ≥ 0)"
                 ));
