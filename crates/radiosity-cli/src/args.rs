@@ -76,6 +76,10 @@ pub struct SolveArgs {
     /// [default: 1].
     #[arg(long, value_name = "W", allow_hyphen_values = true)]
     pub overshoot: Option<f64>,
+    /// Hierarchical solver: the largest irradiance error one link may carry, as a fraction of
+    /// its receiver's irradiance (smaller: more links, more accurate) [default: 0.02].
+    #[arg(long, value_name = "X", allow_hyphen_values = true)]
+    pub epsilon: Option<f64>,
     /// Adaptive meshing: start from half of --elements (edges √2 longer) and split elements
     /// where the radiosity changes fast, up to --elements in total.
     #[arg(long)]
@@ -114,6 +118,7 @@ impl SolveArgs {
             tolerance: self.tolerance,
             max_shots: self.max_shots,
             overshoot: self.overshoot,
+            epsilon: self.epsilon,
             adaptive: self.adaptive,
             refine_threshold: self.refine_threshold,
             max_depth: self.max_depth,

@@ -74,6 +74,8 @@ pub struct Overrides {
     pub max_shots: Option<i64>,
     /// `--overshoot`.
     pub overshoot: Option<f64>,
+    /// `--epsilon` (hierarchical link tolerance).
+    pub epsilon: Option<f64>,
     /// `--adaptive`.
     pub adaptive: bool,
     /// `--refine-threshold`.
@@ -344,6 +346,14 @@ pub fn resolve(
         solve.overshoot = w;
     }
     settings.solve.solve = solve;
+    if let Some(e) = number(
+        Pick::new(name, "--epsilon", "epsilon", flags.epsilon, fs.epsilon),
+        0.0,
+        1.0,
+        "a fraction of the emitted power between 0 and 1 (exclusive)",
+    )? {
+        settings.solve.hierarchical.epsilon = e;
+    }
     settings.solve.form_factor = form_factor.unwrap_or_default();
 
     if flags.adaptive {

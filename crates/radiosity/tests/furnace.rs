@@ -227,3 +227,95 @@ fn floor_emitting_cube_fine_mesh_approaches_the_continuous_answer() {
         }
     }
 }
+
+// ---------------------------------------------------------------------------------------
+// Hierarchical radiosity with clustering (the whole scene's hierarchy, refined by ε).
+
+fn solve_hierarchical(scene: &Scene, epsilon: f64) -> (radiosity::pipeline::Solved, Report) {
+    let mut settings = SolveSettings {
+        solve: SolveOptions {
+            solver: SolverKind::Hierarchical,
+            tolerance: 1e-6,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    settings.hierarchical.epsilon = epsilon;
+    let solved = radiosity::pipeline::solve_scene(scene, &settings, &NoProgress).unwrap();
+    let report = Report::new("furnace", &solved.mesh, &solved.solution, "raycast");
+    (solved, report)
+}
+
+#[test]
+fn uniform_emission_in_a_closed_cube_gives_e_over_one_minus_rho() {
+    for case in furnace()["cases"].as_array().unwrap() {
+        if case["case"] != "a_uniform_emission" {
+            continue;
+        }
+        let rho = case["rho"].as_f64().unwrap();
+        let expected = case["expected_B_all_faces"].as_f64().unwrap();
+        let scene = cube(rho, |_| case["E"].as_f64().unwrap());
+        let (solved, report) = solve_hierarchical(&scene, 0.02);
+        // Tolerances. Each link's error is bounded by ε = 0.02 of its receiver's irradiance,
+        // but the errors of the links one element gathers over add up: along the cube's
+        // edges, where the adjacent face's form factor is log-singular and the smallest
+        // elements are reached, elements read up to 8.8 % high at ρ = 0.5 and 11.7 % at ρ = 0.8 (a known defect of
+        // the current oracle, open in the hierarchical issue; the bound of 15 % guards it
+        // against getting worse). Over a whole face the link errors largely cancel
+        // (measured: face means 6.5e-4 high at ρ = 0.5 and 2.7e-3 at ρ = 0.8, where
+        // 1 / (1 − ρ) amplifies the closure error 5×): bound 0.25 ε / (1 − ρ) per face.
+        let mut worst_element = 0.0f64;
+        for b in &solved.solution.radiosity {
+            let err = (b[0] - expected).abs() / expected;
+            worst_element = worst_element.max(err);
+        }
+        assert!(
+            worst_element < 0.15,
+            "rho {rho}: element error {worst_element}"
+        );
+        for o in &report.objects {
+            let rel = (o.radiosity[0] - expected).abs() / expected;
+            assert!(
+                rel < 0.25 * 0.02 / (1.0 - rho),
+                "rho {rho}: {} B={} expected {expected}",
+                o.name,
+                o.radiosity[0]
+            );
+        }
+        eprintln!(
+            "rho {rho}: worst element {worst_element:.2e}, {} elements",
+            solved.mesh.len()
+        );
+    }
+}
+
+#[test]
+fn floor_emitting_cube_matches_mitsubas_continuous_answer() {
+    for case in furnace()["cases"].as_array().unwrap() {
+        if case["case"] != "b_floor_emits" {
+            continue;
+        }
+        let rho = case["rho"].as_f64().unwrap();
+        let scene = cube(rho, |n| if n == "floor" { 1.0 } else { 0.0 });
+        let (solved, report) = solve_hierarchical(&scene, 0.01);
+        let cont = &case["mitsuba_face_avg_B_continuous"];
+        let stderr = &case["mitsuba_face_avg_B_continuous_stderr"];
+        for o in &report.objects {
+            let want = cont[&o.name].as_f64().unwrap();
+            let se = stderr[&o.name].as_f64().unwrap();
+            // Tolerance: 4 Monte Carlo standard errors of the reference plus 1 % of it, the
+            // ε = 0.01 asked of every link (errors of many links may add up on one face, but
+            // they partly cancel; measured within 0.6 %).
+            let err = (o.radiosity[0] - want).abs();
+            assert!(
+                err < 4.0 * se + 0.01 * want,
+                "rho {rho} {}: B={} continuous {want} ± {se} ({} elements)",
+                o.name,
+                o.radiosity[0],
+                solved.mesh.len()
+            );
+        }
+        // Energy balance of a closed box: everything emitted is absorbed.
+        assert!(report.balance_error() < 1e-4);
+    }
+}

@@ -42,23 +42,29 @@ pub fn point_to_polygon(x: DVec3, n: DVec3, vertices: &[DVec3], polygon_normal: 
     }
 }
 
-/// The contour sum for a polygon already inside the hemisphere above `x`.
+/// The contour sum for a polygon already inside the hemisphere above `x`: n · Γ.
 pub(crate) fn contour_sum(x: DVec3, n: DVec3, vertices: &[DVec3]) -> f64 {
+    lambert_vector(x, vertices).dot(n).clamp(0.0, 1.0)
+}
+
+/// Lambert's contour formula in vector form: Γ(x → q) with F_{dA(x, n) → q} = n · Γ for
+/// every normal n whose hemisphere holds all of q (Baum, Rushmeier & Winget 1989, eq. 1):
+/// Γ = −(1/2π) Σ_k γ_k · (r_k × r_{k+1})/|r_k × r_{k+1}|, r_k = v_k − x. Seen from the front
+/// the polygon winds clockwise about its normal, hence the sign.
+pub fn lambert_vector(x: DVec3, vertices: &[DVec3]) -> DVec3 {
     let count = vertices.len();
-    let mut sum = 0.0;
+    let mut sum = DVec3::ZERO;
     let mut a = vertices[count - 1] - x;
     for v in vertices {
         let b = *v - x;
         let c = a.cross(b);
         let s = c.length();
         if s > 0.0 {
-            let angle = s.atan2(a.dot(b));
-            sum += angle * c.dot(n) / s;
+            sum += c * (s.atan2(a.dot(b)) / s);
         }
         a = b;
     }
-    // Seen from the front the polygon winds clockwise about n, so the sum is negative.
-    (-sum / (2.0 * PI)).clamp(0.0, 1.0)
+    -sum / (2.0 * PI)
 }
 
 #[cfg(test)]

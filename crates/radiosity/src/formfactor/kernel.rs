@@ -243,7 +243,12 @@ pub fn visible_fraction(
     }
     if all > 0.0 {
         seen / all
-    } else {
+    } else if total > 0 {
         visible as f64 / total as f64
+    } else {
+        // Nothing of the source is in front of any receiver point (a coplanar neighbour
+        // tilted by rounding): nothing is seen. (Was 0/0 = NaN, which made the
+        // `analytic-point` rows of closed boxes NaN.)
+        0.0
     }
 }

@@ -79,6 +79,10 @@ pub struct SceneSettings {
     /// unshot fraction of the emitted power for progressive refinement.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tolerance: Option<f64>,
+    /// Hierarchical radiosity's link tolerance ε: the largest error in power one link may
+    /// carry, as a fraction of the scene's emitted power.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub epsilon: Option<f64>,
     /// Shot cap for progressive refinement.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub max_shots: Option<usize>,

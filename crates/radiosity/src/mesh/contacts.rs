@@ -2,9 +2,11 @@
 //! jumps from lit to dark, so the touched surface is split along the contact line before it
 //! is meshed.
 
+use crate::accel::Visibility;
 use crate::geometry::Polygon;
 use crate::scene::Scene;
-use glam::DVec3;
+use glam::{DVec3, Vec3};
+use rayon::prelude::*;
 
 /// Splits surfaces along the lines where other surfaces touch them: an edge of another,
 /// non-parallel surface lying in a surface's plane and crossing its interior (a block
@@ -12,46 +14,80 @@ use glam::DVec3;
 /// a D0 discontinuity in the sense of Heckbert 1992 and Lischinski, Tampieri & Greenberg
 /// 1992), so no element may straddle it. Each piece is cut by the whole line, which keeps
 /// pieces convex. Returns (scene surface index, piece) pairs in scene order.
+///
+/// Only surfaces whose bounding boxes meet are compared (found through a BVH over all
+/// surfaces), so the cost is O(n log n) plus the contacts, not O(n²).
 pub fn split_at_contacts(scene: &Scene) -> Vec<(usize, Polygon)> {
-    let mut out = Vec::new();
-    for (si, s) in scene.surfaces.iter().enumerate() {
-        let n = s.polygon.normal();
-        let tol = 1e-7 * s.polygon.diameter();
-        let mut pieces = vec![s.polygon.clone()];
-        for (ti, t) in scene.surfaces.iter().enumerate() {
-            if ti == si || t.polygon.normal().cross(n).length() < 1e-6 {
+    let bvh = Visibility::from_polygons(scene.surfaces.iter().map(|s| s.polygon.vertices()), 1.0);
+    let split: Vec<Vec<Polygon>> = scene
+        .surfaces
+        .par_iter()
+        .enumerate()
+        .map_init(Vec::new, |found, (si, s)| {
+            let vertices = s.polygon.vertices();
+            let (mut lo, mut hi) = (vertices[0], vertices[0]);
+            for v in vertices {
+                lo = lo.min(*v);
+                hi = hi.max(*v);
+            }
+            // The box grown by the contact tolerance and by f32 rounding of the BVH.
+            let grow = 1e-7 * s.polygon.diameter() + 1e-6 * lo.abs().max(hi.abs()).max_element();
+            bvh.bvh().triangles_in_box(
+                (lo - grow).as_vec3() - Vec3::splat(f32::EPSILON),
+                (hi + grow).as_vec3() + Vec3::splat(f32::EPSILON),
+                found,
+            );
+            let mut near: Vec<usize> = found.iter().map(|(t, _)| bvh.polygon_of(*t)).collect();
+            near.sort_unstable();
+            near.dedup();
+            split_one(scene, si, &near)
+        })
+        .collect();
+    split
+        .into_iter()
+        .enumerate()
+        .flat_map(|(si, pieces)| pieces.into_iter().map(move |p| (si, p)))
+        .collect()
+}
+
+/// Cuts surface `si`'s polygon along the edges of the surfaces `near` (scene indices,
+/// ascending) that lie in its plane and cross its interior.
+fn split_one(scene: &Scene, si: usize, near: &[usize]) -> Vec<Polygon> {
+    let polygon = &scene.surfaces[si].polygon;
+    let n = polygon.normal();
+    let tol = 1e-7 * polygon.diameter();
+    let mut pieces = vec![polygon.clone()];
+    for &ti in near {
+        let t = &scene.surfaces[ti].polygon;
+        if ti == si || t.normal().cross(n).length() < 1e-6 {
+            continue;
+        }
+        for (a, b) in t.edges() {
+            if polygon.plane_distance(a).abs() > tol || polygon.plane_distance(b).abs() > tol {
                 continue;
             }
-            for (a, b) in t.polygon.edges() {
-                if s.polygon.plane_distance(a).abs() > tol
-                    || s.polygon.plane_distance(b).abs() > tol
-                {
-                    continue;
-                }
-                let cut = n.cross(b - a).normalize();
-                let mut next = Vec::with_capacity(pieces.len() + 1);
-                for piece in pieces {
-                    let split = crosses_interior(&piece, a, b, tol)
-                        .then(|| {
-                            let left = piece.clip_to_halfspace(a, cut)?;
-                            let right = piece.clip_to_halfspace(a, -cut)?;
-                            Some((Polygon::new(left).ok()?, Polygon::new(right).ok()?))
-                        })
-                        .flatten();
-                    match split {
-                        Some((l, r)) if l.area() > tol * tol && r.area() > tol * tol => {
-                            next.push(l);
-                            next.push(r);
-                        }
-                        _ => next.push(piece),
+            let cut = n.cross(b - a).normalize();
+            let mut next = Vec::with_capacity(pieces.len() + 1);
+            for piece in pieces {
+                let split = crosses_interior(&piece, a, b, tol)
+                    .then(|| {
+                        let left = piece.clip_to_halfspace(a, cut)?;
+                        let right = piece.clip_to_halfspace(a, -cut)?;
+                        Some((Polygon::new(left).ok()?, Polygon::new(right).ok()?))
+                    })
+                    .flatten();
+                match split {
+                    Some((l, r)) if l.area() > tol * tol && r.area() > tol * tol => {
+                        next.push(l);
+                        next.push(r);
                     }
+                    _ => next.push(piece),
                 }
-                pieces = next;
             }
+            pieces = next;
         }
-        out.extend(pieces.into_iter().map(|p| (si, p)));
     }
-    out
+    pieces
 }
 
 /// Whether the segment a–b (in the polygon's plane) passes through the polygon's interior.

@@ -64,16 +64,6 @@ pub fn solve(
     for stage in (0..STAGES).rev() {
         let epsilon = hierarchy.epsilon * f64::from(1u32 << stage);
         h.refine(epsilon);
-        if std::env::var_os("RADIOSITY_DEBUG").is_some() {
-            eprintln!(
-                "stage ε = {epsilon:.1e}: {} nodes, {} links {:?}, {} forced",
-                h.node_count(),
-                h.link_count(),
-                h.link_kinds(),
-                h.forced
-            );
-            h.debug_cluster_links();
-        }
         b = h.remesh(scene);
         // Intermediate stages only need radiosities good enough for the next refinement.
         let stage_options = SolveOptions {

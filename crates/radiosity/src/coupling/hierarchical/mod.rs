@@ -11,9 +11,11 @@
 //!   sub-elements. The first link is the root's link to itself; nothing is quadratic in the
 //!   number of input polygons.
 //! - **Links** p ← q (receiver p gathers from source q), refined by BF refinement: a link is
-//!   kept when its estimated error in transported power, ΔF · B_q^max · A_p, is at most
-//!   ε · Φ_emitted (ΔF the spread of the transfer over the receiver's and source's sample
-//!   points, including partial visibility); otherwise the larger of p and q is subdivided
+//!   kept when its estimated irradiance error, δ · B_q^max + F̄ · s_q (δ the spread of the
+//!   transfer over the receiver's and source's sample points, including partial visibility;
+//!   s_q what the source's radiosity deviates from its linear fit), is at most ε times the
+//!   irradiance of the receiver's surface (or of a dark floor, β = 0.05 of the scene mean);
+//!   otherwise the larger of p and q is subdivided
 //!   (a cluster opens into its children, a polygon into sub-elements) down to a minimum
 //!   element area.
 //! - **Transfers**: polygon ← polygon by the form-factor kernel (receiver Gauss points ×
@@ -35,7 +37,7 @@ pub mod tree;
 
 use crate::accel::Visibility;
 use crate::coupling::Coupling;
-use crate::formfactor::analytic_point::point_to_polygon;
+use crate::formfactor::analytic_point::{lambert_vector, point_to_polygon};
 use crate::formfactor::kernel::{Kernel, Receiver, SourcePolygon};
 use crate::geometry::Polygon;
 use crate::mesh::{Element, Mesh, Patch, PatchId, SurfaceData};
@@ -51,8 +53,8 @@ use tree::{InputPolygon, Kind, Tree, NONE};
 /// Settings of the hierarchical coupling.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct HierarchicalOptions {
-    /// ε: the largest error in power a link may carry, as a fraction of the scene's emitted
-    /// power (dimensionless).
+    /// ε: the largest irradiance error one link may carry, as a fraction of its receiver's
+    /// irradiance (dimensionless; see [`Hierarchical::refine`]).
     pub epsilon: f64,
     /// Smallest element, as a fraction of the scene's total surface area.
     pub min_area_fraction: f64,
@@ -65,7 +67,7 @@ pub struct HierarchicalOptions {
 impl Default for HierarchicalOptions {
     fn default() -> Self {
         Self {
-            epsilon: 3e-5,
+            epsilon: 0.02,
             min_area_fraction: 1e-5,
             cluster_samples: 4,
             memory_limit: crate::solve::available_memory() / 2,
@@ -100,14 +102,19 @@ pub enum HierarchicalError {
 /// How a link transfers light (see the module documentation).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Transfer {
-    /// Polygon ← polygon: H_p(x) += (F + g · (x − c_p)) · B̄_q — the form factor as an affine
-    /// function over the receiver (its mean F at the centroid c_p, gradient g in the
-    /// receiver's plane), so that the pieces of a receiver get the value at their own place.
+    /// Polygon ← polygon: H_p(x) += (F + g · (x − c_p)) · B̄_q + m · ∇B_q — the form factor
+    /// as an affine function over the receiver (its mean F at the centroid c_p, gradient g in
+    /// the receiver's plane), so that the pieces of a receiver get the value at their own
+    /// place; and the source's radiosity as an affine function over the source (mean B̄_q,
+    /// least-squares gradient ∇B_q over its leaves), weighted by the kernel's first moment
+    /// m = (1/A_p) ∫∫ K(x, y) (y − c_q) dy dx.
     Polygon {
         /// Mean form factor over the receiver.
         f: f32,
         /// Its gradient in the receiver's plane, m⁻¹.
         gradient: [f32; 3],
+        /// The kernel's first moment over the source, m.
+        moment: [f32; 3],
     },
     /// Polygon ← oriented cluster: H_p += g · M_q.
     FromCluster([f32; 3]),
@@ -126,8 +133,21 @@ pub struct Link {
     pub source: u32,
     /// How it transfers.
     pub transfer: Transfer,
-    /// Geometric error coefficient: the link's error in power is `delta · B_q^max · A_p`.
+    /// Geometric error coefficient δ (irradiance per unit source radiosity): the spread of
+    /// the transfer over the receiver's and the source's sample points, with partial
+    /// visibility.
     pub delta: f32,
+    /// The mean transfer f̄ (irradiance per unit source radiosity), for the error of treating
+    /// a non-uniform source as uniform: f̄ · (B_q^max − B̄_q).
+    pub mean: f32,
+}
+
+impl Link {
+    /// The link's irradiance error in channel `c` (W·m⁻²) with the source's state `s`:
+    /// δ · B_q^max + f̄ · (B_q^max − B̄_q).
+    fn error(&self, s: &State, c: usize) -> f64 {
+        f64::from(self.delta) * s.b_max[c] + f64::from(self.mean) * s.spread[c]
+    }
 }
 
 /// β: surfaces with less than this fraction of the scene's mean irradiance are resolved
@@ -144,12 +164,19 @@ const LINK_BYTES: u64 = 48;
 struct State {
     /// Area-averaged radiosity.
     b: [f64; 3],
-    /// Largest leaf radiosity (max channel).
-    b_max: f64,
+    /// Largest leaf radiosity per channel.
+    b_max: [f64; 3],
+    /// Least-squares gradient of the radiosity over a polygon node's leaves, per channel
+    /// (W·m⁻³; zero for leaves and clusters).
+    gradient: [DVec3; 3],
+    /// How far the leaves stray from what a link to this node transfers, per channel
+    /// (W·m⁻²): for polygon nodes the largest |B_leaf − (B̄ + ∇B · (c_leaf − c))|, for
+    /// clusters B_max − B̄.
+    spread: [f64; 3],
     /// Vector exitance Σ B_i A_i n_i per channel.
     m: [DVec3; 3],
-    /// Area-averaged irradiance (max channel).
-    h: f64,
+    /// Area-averaged irradiance per channel.
+    h: [f64; 3],
 }
 
 /// The hierarchical coupling: the hierarchy, its links and the leaf mesh.
@@ -165,9 +192,13 @@ pub struct Hierarchical {
     options: HierarchicalOptions,
     min_area: f64,
     emitted: f64,
-    /// The irradiance below which surfaces count as dark: β = 0.05 of the scene's mean
-    /// irradiance (at least of Φ_emitted / A_total), W·m⁻².
-    dark_floor: f64,
+    /// Emitted power per channel, W.
+    emitted_rgb: [f64; 3],
+    /// The irradiance per channel below which surfaces count as dark (W·m⁻²): β = 0.05 of
+    /// the scene's mean irradiance in that channel (at least Φ_emitted / A_total), and at
+    /// least 1 % of the brightest channel's floor (a channel that carries almost no light is
+    /// not resolved beyond the others).
+    dark_floor: [f64; 3],
     total_area: f64,
     mesh: Mesh,
     /// Leaf node of each mesh element.
@@ -229,16 +260,9 @@ impl Hierarchical {
             .enumerate()
             .map(|(i, o)| (o.as_str(), i as u32))
             .collect();
-        let pieces: Vec<(usize, Polygon)> = if std::env::var_os("RADIOSITY_HR_SPLIT").is_some() {
-            crate::mesh::split_at_contacts(scene)
-        } else {
-            scene
-                .surfaces
-                .iter()
-                .enumerate()
-                .map(|(i, s)| (i, s.polygon.clone()))
-                .collect()
-        };
+        // Contact lines split the inputs, as for the classic mesh: no node straddles the
+        // lit/dark discontinuity where a block stands on a floor.
+        let pieces: Vec<(usize, Polygon)> = crate::mesh::split_at_contacts(scene);
         let inputs: Vec<(Polygon, InputPolygon)> = pieces
             .into_iter()
             .map(|(i, poly)| {
@@ -264,14 +288,15 @@ impl Hierarchical {
             Visibility::from_polygons(inputs.iter().map(|(p, _)| p.vertices()), diameter);
         let tree = Tree::build(inputs);
         let total_area = tree.area_prefix.last().copied().unwrap_or(0.0);
-        let emitted: f64 = scene
-            .surfaces
-            .iter()
-            .map(|s| {
-                let e = scene.material(s).exitance();
-                e[0].max(e[1]).max(e[2]) * s.polygon.area()
-            })
-            .sum();
+        let mut emitted_rgb = [0.0; 3];
+        for s in &scene.surfaces {
+            let e = scene.material(s).exitance();
+            let a = s.polygon.area();
+            for c in 0..3 {
+                emitted_rgb[c] += e[c] * a;
+            }
+        }
+        let emitted = emitted_rgb[0].max(emitted_rgb[1]).max(emitted_rgb[2]);
         let mut h = Self {
             visibility,
             open: Visibility::from_polygons(std::iter::empty::<&[DVec3]>(), diameter),
@@ -282,7 +307,8 @@ impl Hierarchical {
             options,
             min_area: options.min_area_fraction * total_area,
             emitted,
-            dark_floor: DARK_FLOOR * emitted / total_area.max(f64::MIN_POSITIVE),
+            emitted_rgb,
+            dark_floor: [0.0; 3],
             total_area,
             mesh: Mesh::default(),
             leaves: Vec::new(),
@@ -291,6 +317,7 @@ impl Hierarchical {
             form_factor_seconds: 0.0,
             tree,
         };
+        h.set_dark_floor([0.0; 3]);
         h.grow();
         h.rebuild_mesh(&objects, scene);
         Ok(h)
@@ -351,19 +378,22 @@ impl Hierarchical {
         }
     }
 
-    /// The irradiance error (W·m⁻²) a link into node `p` may cause: ε times the irradiance
-    /// of the input polygon `p` belongs to (a cluster: its own), or of the floor
-    /// β · H̄_scene for surfaces darker than that.
-    fn tolerance(&self, p: u32, epsilon: f64) -> f64 {
+    /// The irradiance error (W·m⁻²) per channel that a link into node `p` may cause:
+    /// ε times the irradiance of the input polygon `p` belongs to (a cluster: its own), or
+    /// of the floor β · H̄_scene for surfaces darker than that.
+    fn tolerance(&self, p: u32, epsilon: f64) -> [f64; 3] {
         let n = &self.tree.nodes[p as usize];
-        if std::env::var_os("RADIOSITY_BF").is_some() {
-            return epsilon * self.emitted / n.area.max(f64::MIN_POSITIVE);
-        }
         let h = match n.kind {
             Kind::Polygon { input } => self.state[self.tree.inputs[input as usize].node as usize].h,
             Kind::Cluster => self.state[p as usize].h,
         };
-        epsilon * h.max(self.dark_floor)
+        [0, 1, 2].map(|c| epsilon * h[c].max(self.dark_floor[c]))
+    }
+
+    /// Whether link `link` into `p` is within the tolerance `tol` in every channel.
+    fn within(&self, link: &Link, tol: &[f64; 3]) -> bool {
+        let s = &self.state[link.source as usize];
+        (0..3).all(|c| link.error(s, c) <= tol[c])
     }
 
     /// Refines the links with the current radiosities until every link's error — the spread
@@ -384,10 +414,8 @@ impl Hierarchical {
         } else {
             for p in 0..self.links.len() {
                 let tol = self.tolerance(p as u32, epsilon);
-                let state = &self.state;
-                let (keep, redo): (Vec<Link>, Vec<Link>) = self.links[p]
-                    .iter()
-                    .partition(|l| (l.delta as f64) * state[l.source as usize].b_max <= tol);
+                let (keep, redo): (Vec<Link>, Vec<Link>) =
+                    self.links[p].iter().partition(|l| self.within(l, &tol));
                 if !redo.is_empty() {
                     pending.extend(redo.iter().map(|l| (p as u32, l.source)));
                     self.links[p] = keep;
@@ -422,9 +450,7 @@ impl Hierarchical {
                 match d {
                     Decision::Drop => {}
                     Decision::Accept(link) => {
-                        if (link.delta as f64) * self.state[q as usize].b_max
-                            > self.tolerance(p, epsilon)
-                        {
+                        if !self.within(&link, &self.tolerance(p, epsilon)) {
                             forced += 1;
                         }
                         self.links[p as usize].push(link);
@@ -464,7 +490,7 @@ impl Hierarchical {
     fn inherit_state(&mut self, from: usize) {
         for i in from..self.tree.nodes.len() {
             let parent = self.tree.nodes[i].parent;
-            if parent != NONE && self.state[i].b_max == 0.0 {
+            if parent != NONE && self.state[i].b_max == [0.0; 3] {
                 let mut s = self.state[parent as usize];
                 let n = &self.tree.nodes[i];
                 s.m = s.b.map(|b| n.vector_area * b);
@@ -474,7 +500,7 @@ impl Hierarchical {
     }
 
     /// The oracle for the candidate link p ← q.
-    fn decide(&self, p: u32, q: u32, threshold: f64, at_cap: bool) -> Decision {
+    fn decide(&self, p: u32, q: u32, threshold: [f64; 3], at_cap: bool) -> Decision {
         let (np, nq) = (&self.tree.nodes[p as usize], &self.tree.nodes[q as usize]);
         if p == q {
             return if np.is_polygon() {
@@ -492,24 +518,36 @@ impl Hierarchical {
             return Decision::Drop;
         }
         let estimate = self.estimate(p, q);
-        let error = estimate.delta * self.state[q as usize].b_max;
+        let sq = &self.state[q as usize];
+        let (mut geometric, mut uniformity) = (0.0f64, 0.0f64);
+        let mut within = true;
+        for c in 0..3 {
+            let g = estimate.delta * sq.b_max[c];
+            let u = estimate.mean * sq.spread[c];
+            within &= g + u <= threshold[c];
+            if threshold[c] > 0.0 {
+                geometric = geometric.max(g / threshold[c]);
+                uniformity = uniformity.max(u / threshold[c]);
+            }
+        }
+        let source_dominates = uniformity > geometric;
         let can_p = self.divisible(p);
         let can_q = self.divisible(q);
         match estimate.transfer {
-            Some(transfer) if error <= threshold || at_cap || (!can_p && !can_q) => {
-                Decision::Accept(Link {
-                    source: q,
-                    transfer,
-                    delta: estimate.delta as f32,
-                })
-            }
+            Some(transfer) if within || at_cap || (!can_p && !can_q) => Decision::Accept(Link {
+                source: q,
+                transfer,
+                delta: estimate.delta as f32,
+                mean: estimate.mean as f32,
+            }),
             _ => {
                 // Split the larger end that can be split (a wide or overlapping cluster must
                 // open); the source when its own non-uniformity dominates.
                 let choice = match (can_p, can_q) {
                     (true, true) => {
                         if estimate.must_open_q
-                            || (estimate.source_dominates && !estimate.must_open_p)
+                            || ((estimate.source_dominates || source_dominates)
+                                && !estimate.must_open_p)
                         {
                             q
                         } else if estimate.must_open_p || np.radius >= nq.radius {
@@ -665,14 +703,16 @@ impl Hierarchical {
             misfit = misfit.max((exact - fitted).abs());
         }
         let partial = unoccluded * 2.0 * v.min(1.0 - v);
-        let non_uniform = f * self.non_uniformity(q);
+        let moment = first_moment(&receiver.points, &values, np.axis, source) * v;
         Estimate {
             transfer: Some(Transfer::Polygon {
                 f: f as f32,
                 gradient: (gradient * v).as_vec3().to_array(),
+                moment: moment.as_vec3().to_array(),
             }),
-            delta: misfit * v + partial + non_uniform,
-            source_dominates: non_uniform > misfit * v + partial,
+            delta: misfit * v + partial,
+            mean: f,
+            source_dominates: false,
             must_open_p: false,
             must_open_q: false,
         }
@@ -726,18 +766,6 @@ impl Hierarchical {
         }
     }
 
-    /// How far a source's radiosity is from uniform: (B_max − B̄)/B_max over its leaves (max
-    /// channel), 0 for a uniform source, near 1 for a bright spot on a dark node.
-    fn non_uniformity(&self, q: u32) -> f64 {
-        let sq = &self.state[q as usize];
-        let mean = sq.b.iter().copied().fold(0.0, f64::max);
-        if sq.b_max > 0.0 {
-            ((sq.b_max - mean) / sq.b_max).max(0.0)
-        } else {
-            0.0
-        }
-    }
-
     /// Whether nothing but the two nodes' own polygons can be in the way between them: no
     /// other surface within the capsule about their centres of their larger bounding radius
     /// ([`Visibility::maybe_blocked`]). Then visibility is certain and no ray is needed;
@@ -780,6 +808,7 @@ impl Hierarchical {
         Estimate {
             transfer: Some(Transfer::ToCluster(g.as_vec3().to_array())),
             delta: (hi - lo).max(0.0),
+            mean: g.dot(np.axis).abs(),
             source_dominates: false,
             must_open_p: false,
             must_open_q: false,
@@ -848,11 +877,11 @@ impl Hierarchical {
         // not from where its area is), which opens the source.
         let spread = if lo.is_finite() { hi - lo } else { 0.0 };
         let mean_value = if lo.is_finite() { 0.5 * (hi + lo) } else { 0.0 };
-        let non_uniform = self.non_uniformity(q) * mean_value;
         Estimate {
             transfer: Some(transfer),
-            delta: spread + non_uniform,
-            source_dominates: non_uniform > spread,
+            delta: spread,
+            mean: mean_value,
+            source_dominates: false,
             must_open_p: false,
             must_open_q: false,
         }
@@ -868,6 +897,7 @@ impl Hierarchical {
         let must = Estimate {
             transfer: None,
             delta: f64::INFINITY,
+            mean: 0.0,
             source_dominates: open_q && !open_p,
             must_open_p: open_p,
             must_open_q: open_q,
@@ -891,6 +921,7 @@ impl Hierarchical {
         Estimate {
             transfer: Some(Transfer::Uniform(c as f32)),
             delta: bound,
+            mean: c,
             ..must
         }
     }
@@ -1016,31 +1047,6 @@ impl Hierarchical {
         k
     }
 
-    /// Prints the links with a cluster end (debugging aid).
-    pub fn debug_cluster_links(&self) {
-        let names = |n: u32| -> Vec<String> {
-            let node = &self.tree.nodes[n as usize];
-            (node.leaves.0..node.leaves.1)
-                .map(|i| {
-                    let input = self.tree.leaf_order[i as usize] as usize;
-                    self.mesh.objects[self.tree.inputs[input].object as usize].clone()
-                })
-                .collect()
-        };
-        for (p, links) in self.links.iter().enumerate() {
-            for l in links {
-                if !matches!(l.transfer, Transfer::Polygon { .. }) {
-                    eprintln!(
-                        "  {:?} <- {:?}: {:?}",
-                        names(p as u32),
-                        names(l.source),
-                        l.transfer
-                    );
-                }
-            }
-        }
-    }
-
     /// Counts of nodes and leaves.
     pub fn node_count(&self) -> usize {
         self.tree.nodes.len()
@@ -1058,6 +1064,7 @@ enum End {
 struct Estimate {
     transfer: Option<Transfer>,
     delta: f64,
+    mean: f64,
     source_dominates: bool,
     must_open_p: bool,
     must_open_q: bool,
@@ -1069,8 +1076,10 @@ impl Estimate {
             transfer: Some(Transfer::Polygon {
                 f: 0.0,
                 gradient: [0.0; 3],
+                moment: [0.0; 3],
             }),
             delta: 0.0,
+            mean: 0.0,
             source_dominates: false,
             must_open_p: false,
             must_open_q: false,
@@ -1116,23 +1125,40 @@ fn affine_fit(points: &[(DVec3, f64)], values: &[f64], normal: DVec3) -> (DVec3,
     (gradient, misfit)
 }
 
-/// Lambert's contour formula in vector form: Γ(x → q) with F_{dA(x, n) → q} = n · Γ for
-/// every normal n whose hemisphere holds all of q (Baum, Rushmeier & Winget 1989, eq. 1):
-/// Γ = −(1/2π) Σ_k γ_k · (r_k × r_{k+1})/|r_k × r_{k+1}|, r_k = v_k − x.
-pub fn lambert_vector(x: DVec3, vertices: &[DVec3]) -> DVec3 {
-    let count = vertices.len();
-    let mut sum = DVec3::ZERO;
-    let mut a = vertices[count - 1] - x;
-    for v in vertices {
-        let b = *v - x;
-        let c = a.cross(b);
-        let s = c.length();
-        if s > 0.0 {
-            sum += c * (s.atan2(a.dot(b)) / s);
-        }
-        a = b;
+/// The kernel's first moment over the source, (1/A_p) ∫∫ K(x, y) (y − c_q) dy dx: at each
+/// receiver point x (weights summing to 1, form factors `values`), F(x) times the offset of
+/// the kernel-weighted centroid of the source's sub-areas from the source's centroid.
+fn first_moment(
+    points: &[(DVec3, f64)],
+    values: &[f64],
+    normal: DVec3,
+    source: &SourcePolygon,
+) -> DVec3 {
+    if source.sub_points.len() < 2 {
+        return DVec3::ZERO;
     }
-    -sum / (2.0 * PI)
+    let centre = crate::formfactor::kernel::polygon_centroid(&source.vertices);
+    let mut moment = DVec3::ZERO;
+    for ((x, w), f) in points.iter().zip(values) {
+        if *f <= 0.0 {
+            continue;
+        }
+        let (mut sum, mut weighted) = (0.0, DVec3::ZERO);
+        for (y, a) in source.sub_points.iter().zip(&source.sub_area_sizes) {
+            let d = *y - *x;
+            let r2 = d.length_squared();
+            if r2 <= 0.0 {
+                continue;
+            }
+            let k = normal.dot(d).max(0.0) * source.normal.dot(-d).max(0.0) * a / (r2 * r2);
+            sum += k;
+            weighted += *y * k;
+        }
+        if sum > 0.0 {
+            moment += (weighted / sum - centre) * (w * f);
+        }
+    }
+    moment
 }
 
 impl Coupling for Hierarchical {
@@ -1181,11 +1207,13 @@ fn pull_state(tree: &Tree, leaves: &[u32], leaf_b: &[[f64; 3]]) -> Vec<State> {
         let b = leaf_b[e];
         state[node as usize] = State {
             b,
-            b_max: b[0].max(b[1]).max(b[2]),
+            b_max: b,
             m: b.map(|x| n.vector_area * x),
-            h: 0.0,
+            ..State::default()
         };
     }
+    // First moments ∫ B (y − c) dA of polygon nodes, for their gradients.
+    let mut first = vec![[DVec3::ZERO; 3]; tree.nodes.len()];
     for i in (0..tree.nodes.len()).rev() {
         let n = &tree.nodes[i];
         if n.child_count == 0 {
@@ -1199,14 +1227,64 @@ fn pull_state(tree: &Tree, leaves: &[u32], leaf_b: &[[f64; 3]]) -> Vec<State> {
                 s.b[k] += cs.b[k] * a;
                 s.m[k] += cs.m[k];
             }
-            s.b_max = s.b_max.max(cs.b_max);
+            for k in 0..3 {
+                s.b_max[k] = s.b_max[k].max(cs.b_max[k]);
+            }
         }
         if n.area > 0.0 {
             s.b = s.b.map(|x| x / n.area);
         }
+        if n.is_polygon() {
+            // ∫ B (y − c) dA = Σ_children [∫_child B (y − c_child) dA + A_child B̄_child (c_child − c)],
+            // and ∇B = S⁻¹ of it in the plane (S the node's second moment of area).
+            let mut t = [DVec3::ZERO; 3];
+            for ch in n.children() {
+                let cn = &tree.nodes[ch as usize];
+                for k in 0..3 {
+                    t[k] += first[ch as usize][k]
+                        + (cn.centre - n.centre) * (cn.area * state[ch as usize].b[k]);
+                }
+            }
+            let (u, v) = n.axis.any_orthonormal_pair();
+            let [suu, suv, svv] = n.plane_moment;
+            let det = suu * svv - suv * suv;
+            if det > 1e-12 * (suu * svv).max(f64::MIN_POSITIVE) {
+                for k in 0..3 {
+                    let (tu, tv) = (t[k].dot(u), t[k].dot(v));
+                    s.gradient[k] =
+                        u * ((tu * svv - tv * suv) / det) + v * ((tv * suu - tu * suv) / det);
+                }
+            }
+            first[i] = t;
+        }
         state[i] = s;
     }
     state
+}
+
+/// The spread of every node (see [`State::spread`]): for polygon nodes the largest deviation
+/// of a leaf below from the node's affine radiosity, for clusters B_max − B̄.
+fn set_spread(tree: &Tree, leaves: &[u32], state: &mut [State]) {
+    for (i, n) in tree.nodes.iter().enumerate() {
+        if !n.is_polygon() {
+            let s = &mut state[i];
+            s.spread = [0, 1, 2].map(|c| (s.b_max[c] - s.b[c]).max(0.0));
+        } else {
+            state[i].spread = [0.0; 3];
+        }
+    }
+    for &leaf in leaves {
+        let (centre, b) = (tree.nodes[leaf as usize].centre, state[leaf as usize].b);
+        let mut a = tree.nodes[leaf as usize].parent;
+        while a != NONE && tree.nodes[a as usize].is_polygon() {
+            let (na, sa) = (&tree.nodes[a as usize], &mut state[a as usize]);
+            for c in 0..3 {
+                let fitted = sa.b[c] + sa.gradient[c].dot(centre - na.centre);
+                sa.spread[c] = sa.spread[c].max((b[c] - fitted).abs());
+            }
+            a = na.parent;
+        }
+    }
 }
 
 /// Gathers over `links` from `state`.
@@ -1218,10 +1296,15 @@ fn gather_with(links: &[Vec<Link>], state: &[State]) -> Vec<Gathered> {
             for l in links {
                 let s = &state[l.source as usize];
                 match l.transfer {
-                    Transfer::Polygon { f, gradient } => {
+                    Transfer::Polygon {
+                        f,
+                        gradient,
+                        moment,
+                    } => {
                         let g = DVec3::from_array(gradient.map(f64::from));
+                        let m = DVec3::from_array(moment.map(f64::from));
                         for c in 0..3 {
-                            out.h[c] += f as f64 * s.b[c];
+                            out.h[c] += f as f64 * s.b[c] + m.dot(s.gradient[c]);
                             out.g[c] += g * s.b[c];
                         }
                     }
@@ -1274,25 +1357,34 @@ impl Hierarchical {
     /// oracle of the next refinement.
     pub fn set_solution(&mut self, leaf_b: &[[f64; 3]], leaf_h: &[[f64; 3]]) {
         self.state = pull_state(&self.tree, &self.leaves, leaf_b);
+        set_spread(&self.tree, &self.leaves, &mut self.state);
         // Irradiance, area-averaged up the tree.
         for (e, &node) in self.leaves.iter().enumerate() {
-            let h = leaf_h[e];
-            self.state[node as usize].h = h[0].max(h[1]).max(h[2]);
+            self.state[node as usize].h = leaf_h[e];
         }
         for i in (0..self.tree.nodes.len()).rev() {
             let n = &self.tree.nodes[i];
             if n.child_count == 0 || n.area <= 0.0 {
                 continue;
             }
-            let sum: f64 = n
-                .children()
-                .map(|c| self.state[c as usize].h * self.tree.nodes[c as usize].area)
-                .sum();
-            self.state[i].h = sum / n.area;
+            let mut sum = [0.0; 3];
+            for c in n.children() {
+                let a = self.tree.nodes[c as usize].area;
+                for k in 0..3 {
+                    sum[k] += self.state[c as usize].h[k] * a;
+                }
+            }
+            self.state[i].h = sum.map(|x| x / n.area);
         }
-        let scene_mean = self.state[0].h;
-        self.dark_floor =
-            DARK_FLOOR * scene_mean.max(self.emitted / self.total_area.max(f64::MIN_POSITIVE));
+        self.set_dark_floor(self.state[0].h);
+    }
+
+    /// Sets the dark floor from the scene's mean irradiance per channel.
+    fn set_dark_floor(&mut self, scene_mean: [f64; 3]) {
+        let area = self.total_area.max(f64::MIN_POSITIVE);
+        let floor = [0, 1, 2].map(|c| scene_mean[c].max(self.emitted_rgb[c] / area));
+        let top = floor[0].max(floor[1]).max(floor[2]);
+        self.dark_floor = floor.map(|f| DARK_FLOOR * f.max(0.01 * top));
     }
 }
 

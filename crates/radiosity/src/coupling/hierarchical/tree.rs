@@ -70,6 +70,10 @@ pub struct Node {
     pub cone_cos: f64,
     /// Subdivision depth below the input polygon (0 for clusters and input polygons).
     pub depth: u16,
+    /// Polygon nodes: the second moment of area about the centroid in the plane,
+    /// ∫ (u², uv, v²) dA over the polygon, m⁴, with (u, v) the coordinates along
+    /// `axis.any_orthonormal_pair()` (for least-squares radiosity gradients).
+    pub plane_moment: [f64; 3],
 }
 
 impl Node {
@@ -231,6 +235,7 @@ impl Tree {
             axis: normal,
             cone_cos: 1.0,
             depth,
+            plane_moment: plane_moment(vertices, centre, normal),
         }
     }
 
@@ -398,7 +403,27 @@ fn placeholder() -> Node {
         axis: DVec3::Z,
         cone_cos: 1.0,
         depth: 0,
+        plane_moment: [0.0; 3],
     }
+}
+
+/// ∫ (u², uv, v²) dA about `centre` over a convex polygon, in the basis
+/// `normal.any_orthonormal_pair()`: per fan triangle (centre, b, d) with b, d relative to
+/// the centre, ∫ y yᵀ dA = A/12 (b bᵀ + d dᵀ + (b + d)(b + d)ᵀ).
+fn plane_moment(vertices: &[DVec3], centre: DVec3, normal: DVec3) -> [f64; 3] {
+    let (t, s) = normal.any_orthonormal_pair();
+    let mut m = [0.0; 3];
+    let count = vertices.len();
+    for i in 0..count {
+        let (b, d) = (vertices[i] - centre, vertices[(i + 1) % count] - centre);
+        let area = 0.5 * b.cross(d).dot(normal);
+        let (bu, bv, du, dv) = (b.dot(t), b.dot(s), d.dot(t), d.dot(s));
+        let (su, sv) = (bu + du, bv + dv);
+        m[0] += area / 12.0 * (bu * bu + du * du + su * su);
+        m[1] += area / 12.0 * (bu * bv + du * dv + su * sv);
+        m[2] += area / 12.0 * (bv * bv + dv * dv + sv * sv);
+    }
+    m
 }
 
 /// Splits a convex polygon into two convex halves by the line through its centroid
