@@ -27,7 +27,10 @@ fn tessellated(scene: &Scene, k: usize) -> Scene {
         }
         let at = |i: usize, j: usize| -> DVec3 {
             let (u, w) = (i as f64 / k as f64, j as f64 / k as f64);
-            v[0] * (1.0 - u) * (1.0 - w) + v[1] * u * (1.0 - w) + v[2] * u * w + v[3] * (1.0 - u) * w
+            v[0] * (1.0 - u) * (1.0 - w)
+                + v[1] * u * (1.0 - w)
+                + v[2] * u * w
+                + v[3] * (1.0 - u) * w
         };
         for i in 0..k {
             for j in 0..k {
