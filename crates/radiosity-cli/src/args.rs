@@ -44,6 +44,9 @@ pub enum Command {
     Completions(crate::cmd_shell::CompletionsArgs),
     /// Print the manual page (roff), or write one page per command with -o DIR.
     Man(crate::cmd_shell::ManArgs),
+    /// Illuminance (lx) at point sensors and on work-plane grids: JSON, CSV and false-colour
+    /// PNG with Emin, Ē, Emax and the uniformity U0.
+    Measure(crate::cmd_measure::MeasureArgs),
 }
 
 /// Options that decide how a scene is meshed and solved.
@@ -214,6 +217,10 @@ pub struct RenderArgs {
     /// Render a saved solution (from `solve --save`) instead of solving a scene.
     #[arg(long, value_name = "FILE", conflicts_with = "scene")]
     pub solution: Option<PathBuf>,
+    /// Show surfaces in false colour with a legend and iso-lines: illuminance in lx
+    /// (`lux`) or luminance in cd/m² (`luminance`). PNG only.
+    #[arg(long, value_enum, value_name = "QUANTITY")]
+    pub false_colour: Option<crate::cmd_falsecolour::FalseColour>,
     #[command(flatten)]
     pub view: ViewArgs,
     #[command(flatten)]

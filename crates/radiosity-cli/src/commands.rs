@@ -27,6 +27,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Compare(args) => crate::cmd_compare::run(args),
         Command::Completions(args) => crate::cmd_shell::completions(args),
         Command::Man(args) => crate::cmd_shell::man(args),
+        Command::Measure(args) => crate::cmd_measure::run(args),
     }
 }
 
@@ -118,7 +119,8 @@ fn solve(args: SolveCmdArgs) -> Result<()> {
         &solved.mesh,
         &solved.solution,
         solved.form_factor.name(),
-    );
+    )
+    .with_lights(&scene.lights);
     if !args.solve.quiet {
         let t = &report.totals;
         let fmt = |p: [f64; 3]| format!("({:.4}, {:.4}, {:.4}) W", p[0], p[1], p[2]);
@@ -155,6 +157,9 @@ fn render(args: RenderArgs) -> Result<()> {
     } else {
         Shading::Smooth
     };
+    if let (Some(_), Some(out)) = (args.false_colour, &args.output) {
+        crate::cmd_falsecolour::check_png(out)?;
+    }
     let output_for = |name: &str| -> Result<PathBuf> {
         let output = args.output.clone().unwrap_or_else(|| default_output(name));
         radiosity::render::check_output(&output)?;
@@ -172,7 +177,10 @@ fn render(args: RenderArgs) -> Result<()> {
         let base = file.camera.map(Camera::from).unwrap_or_default();
         let vertices = file.vertices();
         let camera = radiosity::settings::camera(base, centre_of(&vertices), &args.view.camera())?;
-        let radiosity = file.display_radiosity(settings.render.ambient);
+        let radiosity = match args.false_colour {
+            Some(q) => crate::cmd_falsecolour::values(q, &file.radiosity, &file.irradiance),
+            None => file.display_radiosity(settings.render.ambient),
+        };
         (vertices, file.elements, radiosity, camera, output, settings)
     } else {
         let loaded = load_scene(args.scene.as_deref())?;
@@ -181,9 +189,16 @@ fn render(args: RenderArgs) -> Result<()> {
         let output = output_for(&scene.name)?;
         let camera = scene_camera(scene, &args.view)?;
         let solved = run_solve(scene, &settings, &args.solve)?;
-        let radiosity = solved
-            .solution
-            .display_radiosity(&solved.mesh, settings.render.ambient);
+        let radiosity = match args.false_colour {
+            Some(q) => crate::cmd_falsecolour::values(
+                q,
+                &solved.solution.radiosity,
+                &solved.solution.irradiance,
+            ),
+            None => solved
+                .solution
+                .display_radiosity(&solved.mesh, settings.render.ambient),
+        };
         let mesh = solved.mesh;
         (
             mesh.vertices,
@@ -194,6 +209,22 @@ fn render(args: RenderArgs) -> Result<()> {
             settings,
         )
     };
+    if let Some(quantity) = args.false_colour {
+        let shaded = Shaded {
+            vertices: &vertices,
+            elements: &elements,
+            radiosity: &radiosity,
+        };
+        return crate::cmd_falsecolour::render(
+            quantity,
+            &shaded,
+            &camera,
+            shading,
+            &render_options(&settings),
+            &output,
+            args.solve.quiet,
+        );
+    }
     let shaded = Shaded {
         vertices: &vertices,
         elements: &elements,

@@ -3,7 +3,9 @@
 
 mod args;
 mod cmd_compare;
+mod cmd_falsecolour;
 mod cmd_formfactor;
+mod cmd_measure;
 mod cmd_progressive;
 mod cmd_shell;
 mod commands;

@@ -403,7 +403,7 @@ const LABEL_COLOUR: [u8; 3] = [235, 235, 235];
 
 /// Draws one line of text with its baseline at `baseline`, starting at `x` (pixels),
 /// blending each glyph's coverage over the image; clipped at the image's edges.
-fn draw_text(
+pub(crate) fn draw_text(
     image: &mut image::RgbImage,
     font: &ab_glyph::FontRef,
     size: f32,

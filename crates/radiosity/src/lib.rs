@@ -11,12 +11,15 @@
 //! - [`geometry`]: convex polygons, the one clipper and the one lattice subdivider;
 //! - [`mesh`]: patches and elements, contact lines, adaptive refinement;
 //! - [`accel`]: the BVH and the visibility query;
+//! - [`direct`]: the first shot from light sources (point, spot, goniometric) onto elements;
 //! - [`formfactor`]: form-factor kernels on geometry, and mesh engines built on them;
 //! - [`coupling`]: which elements exchange light at what level (dense, columns on the fly);
 //! - [`solve`]: direct, Jacobi, Gauss–Seidel, progressive refinement, each reporting its
 //!   steps to an observer;
 //! - [`display`] and [`render`]: the crack-free display mesh and the rasteriser;
-//! - [`report`]: per-object values in physical units; [`pipeline`]: the stages in one call.
+//! - [`report`]: per-object values in physical units (W·m⁻², lx, cd/m²); [`measure`]:
+//!   illuminance at sensor points and on work-plane grids; [`pipeline`]: the stages in one
+//!   call.
 //!
 //! Units: lengths in metres, emitted radiance L_e in W·m⁻²·sr⁻¹, radiosity, exitance and
 //! irradiance in W·m⁻², power in W.
@@ -26,11 +29,13 @@
 pub mod accel;
 pub mod cornell;
 pub mod coupling;
+pub mod direct;
 pub mod display;
 pub mod formfactor;
 pub mod geometry;
 pub mod io;
 pub mod light;
+pub mod measure;
 pub mod mesh;
 pub mod photometry;
 pub mod pipeline;

@@ -15,8 +15,11 @@
 //! measured from the nadir axis (γ = 0 straight "down" the luminaire's axis), and the azimuth C
 //! from the C = 0 half-plane, counter-clockwise seen from above (looking along the nadir).
 
+use crate::photometry::Photometry;
 use crate::scene::Origin;
 use glam::DVec3;
+use std::f64::consts::PI;
+use std::sync::Arc;
 
 /// Where a luminaire points: its nadir axis (γ = 0) and the direction of its C = 0 half-plane.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -81,17 +84,53 @@ pub enum Distribution {
         /// Half-angle beyond which nothing is emitted, degrees (> `inner_deg`, ≤ 90).
         outer_deg: f64,
     },
+    /// A measured luminaire: D(C, γ) = the photometric table's luminous intensity in cd
+    /// ([`Photometry::intensity`], bilinear between the file's angles), so `intensity` is
+    /// W·sr⁻¹ per candela.
+    Goniometric(Arc<Photometry>),
 }
 
 impl Distribution {
     /// D at polar angle γ and azimuth C (degrees).
-    pub fn value(&self, _c_deg: f64, gamma_deg: f64) -> f64 {
-        match *self {
+    pub fn value(&self, c_deg: f64, gamma_deg: f64) -> f64 {
+        match self {
             Distribution::Isotropic => 1.0,
             Distribution::Spot {
                 inner_deg,
                 outer_deg,
-            } => spot_falloff(gamma_deg, inner_deg, outer_deg),
+            } => spot_falloff(gamma_deg, *inner_deg, *outer_deg),
+            Distribution::Goniometric(table) => table.intensity(c_deg, gamma_deg),
+        }
+    }
+
+    /// ∫ D dω over the sphere (sr; lm for a goniometric table, whose D is in cd), so that a
+    /// light's power is `intensity` × this.
+    ///
+    /// Isotropic: 4π. Spot: with u = cos γ, D is 1 on [cos inner, 1] and a smoothstep of u on
+    /// [cos outer, cos inner], whose integral is half that interval, so
+    /// ∫ D dω = 2π (1 − cos inner + (cos inner − cos outer)/2). Goniometric: the table's flux,
+    /// exact for its bilinear interpolant ([`Photometry::flux`]).
+    pub fn integral(&self) -> f64 {
+        match self {
+            Distribution::Isotropic => 4.0 * PI,
+            Distribution::Spot {
+                inner_deg,
+                outer_deg,
+            } => {
+                let ci = inner_deg.to_radians().cos();
+                let co = outer_deg.to_radians().cos();
+                2.0 * PI * (1.0 - ci + 0.5 * (ci - co))
+            }
+            Distribution::Goniometric(table) => table.flux(),
+        }
+    }
+
+    /// The largest value D takes (1 for isotropic and spot lights, the table's largest
+    /// candela for a goniometric one).
+    pub fn peak(&self) -> f64 {
+        match self {
+            Distribution::Isotropic | Distribution::Spot { .. } => 1.0,
+            Distribution::Goniometric(table) => table.max_intensity(),
         }
     }
 }
@@ -133,6 +172,24 @@ impl Light {
         let d = self.distribution.value(c, gamma);
         self.intensity.map(|i| i * d)
     }
+
+    /// Radiant flux (power) per RGB channel, W: `intensity` × ∫ D dω
+    /// ([`Distribution::integral`]).
+    pub fn power(&self) -> [f64; 3] {
+        let integral = self.distribution.integral();
+        self.intensity.map(|i| i * integral)
+    }
+
+    /// Luminous flux, lm: 683 · Y(power) (see [`crate::units`]).
+    pub fn luminous_flux(&self) -> f64 {
+        crate::units::LUMINOUS_EFFICACY * crate::units::luminance_y(self.power())
+    }
+
+    /// The largest radiant intensity in any direction per channel, W·sr⁻¹.
+    pub fn peak_intensity(&self) -> [f64; 3] {
+        let peak = self.distribution.peak();
+        self.intensity.map(|i| i * peak)
+    }
 }
 
 #[cfg(test)]
@@ -162,5 +219,39 @@ mod tests {
         assert_eq!(d.value(0.0, 31.0), 0.0);
         let mid = d.value(0.0, 25.0);
         assert!(mid > 0.0 && mid < 1.0);
+    }
+
+    /// ∫ D dω against a midpoint sum over γ (D depends on γ only): the closed forms of
+    /// [`Distribution::integral`].
+    #[test]
+    fn integrals_match_quadrature() {
+        for d in [
+            Distribution::Isotropic,
+            Distribution::Spot {
+                inner_deg: 20.0,
+                outer_deg: 35.0,
+            },
+            Distribution::Spot {
+                inner_deg: 0.0,
+                outer_deg: 90.0,
+            },
+        ] {
+            let n = 200_000;
+            let h = PI / n as f64;
+            let sum: f64 = (0..n)
+                .map(|k| {
+                    let g = (k as f64 + 0.5) * h;
+                    d.value(0.0, g.to_degrees()) * g.sin() * h
+                })
+                .sum::<f64>()
+                * 2.0
+                * PI;
+            // Midpoint rule, error O(h²) ≈ 1e-10 here.
+            assert!(
+                (sum - d.integral()).abs() < 1e-8,
+                "{d:?}: {sum} vs {}",
+                d.integral()
+            );
+        }
     }
 }

@@ -84,7 +84,8 @@ pub fn solve_scene_observed(
             form_factor: settings.form_factor,
         });
     }
-    let mesh = Mesh::build(scene, &settings.mesh)?;
+    let mut mesh = Mesh::build(scene, &settings.mesh)?;
+    crate::direct::illuminate(&mut mesh, &scene.lights);
     let solution = solve_mesh(&mesh, settings, progress, observer)?;
     Ok(Solved {
         mesh,
@@ -126,7 +127,8 @@ pub fn check_memory(
 
 /// Solves a meshed scene: visibility, the link-level oracle, the form-factor engine, the
 /// coupling the solver needs (dense for the matrix solvers, columns on the fly for
-/// progressive refinement), then the solver.
+/// progressive refinement), then the solver. Light sources reach it through the mesh's
+/// first shot ([`Mesh::direct`], filled by [`crate::direct::illuminate`]).
 pub fn solve_mesh(
     mesh: &Mesh,
     settings: &SolveSettings,
@@ -179,6 +181,7 @@ pub fn solve_scene_adaptive_observed(
 ) -> Result<Solved, PipelineError> {
     let coarse = coarse_mesh_options(&settings.mesh);
     let mut mesh = Mesh::build(scene, &coarse)?;
+    crate::direct::illuminate(&mut mesh, &scene.lights);
     loop {
         let solution = solve_mesh(&mesh, settings, progress, observer)?;
         let marked = crate::mesh::refine::mark(&mesh, &solution.radiosity, refine);
@@ -190,6 +193,7 @@ pub fn solve_scene_adaptive_observed(
             });
         }
         mesh = crate::mesh::refine::refine(&mesh, &marked);
+        crate::direct::illuminate(&mut mesh, &scene.lights);
     }
 }
 

@@ -5,14 +5,18 @@
 //! instead of the dense matrix's O(n·m); columns are kept in a cache while it fits in its
 //! byte budget, so a patch that shoots again costs nothing. Gathering (for residuals and
 //! refinement) computes rows on the fly.
+//!
+//! Far receivers see a patch at the mean of [`super::far_weights`] (what the near receivers
+//! leave of each element's power), as in [`super::Dense`]; a patch's weights come from its
+//! near links, computed with its first column (or, for gathering, on their own) and kept.
 
-use super::{patch_means, shot_mean, Coupling, NearField};
+use super::{far_weights, Coupling, NearField};
 use crate::formfactor::Engine;
 use crate::mesh::Mesh;
 use rayon::prelude::*;
 use std::collections::HashMap;
 use std::ops::Range;
-use std::sync::Mutex;
+use std::sync::{Mutex, OnceLock};
 use std::time::Instant;
 
 /// One shot's form factors: far values for every element, and near-field rows for the
@@ -44,7 +48,8 @@ pub struct Columns<'a> {
     mesh: &'a Mesh,
     engine: &'a dyn Engine,
     near: &'a NearField,
-    patch_area: Vec<f64>,
+    /// Far weights of each patch's elements, in element order ([`super::far_weights`]).
+    far_weight: Vec<OnceLock<Vec<f64>>>,
     cache: Mutex<Cache>,
     cache_limit: usize,
 }
@@ -62,7 +67,7 @@ impl<'a> Columns<'a> {
             mesh,
             engine,
             near,
-            patch_area: mesh.patches.iter().map(|p| mesh.patch_area(p)).collect(),
+            far_weight: (0..mesh.patches.len()).map(|_| OnceLock::new()).collect(),
             cache: Mutex::new(Cache {
                 columns: HashMap::new(),
                 bytes: 0,
@@ -87,8 +92,15 @@ impl<'a> Columns<'a> {
         for &e in receivers {
             far[e as usize] = 0.0;
         }
+        let near = self.near_rows(p);
+        self.far_weight[p].get_or_init(|| self.weights_from(p, &near));
+        Column { far, near }
+    }
+
+    /// F_{e→s} from every near receiver e of patch `p` to each of its elements s.
+    fn near_rows(&self, p: usize) -> Vec<(u32, Vec<f32>)> {
         let sources = self.mesh.patches[p].elements.clone();
-        let near = receivers
+        self.near.per_patch[p]
             .par_iter()
             .map(|&e| {
                 let row = sources
@@ -97,8 +109,51 @@ impl<'a> Columns<'a> {
                     .collect();
                 (e, row)
             })
-            .collect();
-        Column { far, near }
+            .collect()
+    }
+
+    /// Far weights of patch `p` from its near rows.
+    fn weights_from(&self, p: usize, near: &[(u32, Vec<f32>)]) -> Vec<f64> {
+        let patch = &self.mesh.patches[p];
+        let mut taken = vec![0.0; patch.elements.len()];
+        for (e, row) in near {
+            let a = self.mesh.elements[*e as usize].area;
+            for (t, f) in taken.iter_mut().zip(row) {
+                *t += a * *f as f64;
+            }
+        }
+        far_weights(self.mesh, patch, &taken)
+    }
+
+    /// Far weights of patch `p` (computing its near rows if no column has yet).
+    fn weights(&self, p: usize) -> &[f64] {
+        self.far_weight[p].get_or_init(|| {
+            if self.near.per_patch[p].is_empty() {
+                let patch = &self.mesh.patches[p];
+                far_weights(self.mesh, patch, &vec![0.0; patch.elements.len()])
+            } else {
+                self.weights_from(p, &self.near_rows(p))
+            }
+        })
+    }
+
+    /// The far mean of every patch of per-element values `b`.
+    fn far_means(&self, b: &[[f64; 3]]) -> Vec<[f64; 3]> {
+        (0..self.mesh.patches.len())
+            .into_par_iter()
+            .map(|p| {
+                let range = self.mesh.patches[p].elements.clone();
+                let local = &b[range.start as usize..range.end as usize];
+                let w = self.weights(p);
+                let mut m = [0.0; 3];
+                for (v, w) in local.iter().zip(w) {
+                    for c in 0..3 {
+                        m[c] += v[c] * w;
+                    }
+                }
+                m
+            })
+            .collect()
     }
 
     /// Runs `f` on column `p`, from the cache or computed (and cached while room remains).
@@ -165,7 +220,7 @@ impl Coupling for Columns<'_> {
     }
 
     fn gather(&self, b: &[[f64; 3]]) -> Vec<[f64; 3]> {
-        let bp = patch_means(self.mesh, &self.patch_area, b);
+        let bp = self.far_means(b);
         (0..b.len())
             .into_par_iter()
             .map(|e| self.irradiance_at(e, &bp, b))
@@ -173,7 +228,7 @@ impl Coupling for Columns<'_> {
     }
 
     fn gather_elements(&self, elements: &[u32], b: &[[f64; 3]]) -> Vec<[f64; 3]> {
-        let bp = patch_means(self.mesh, &self.patch_area, b);
+        let bp = self.far_means(b);
         elements
             .par_iter()
             .map(|&e| self.irradiance_at(e as usize, &bp, b))
@@ -189,9 +244,14 @@ impl Coupling for Columns<'_> {
     }
 
     fn shoot(&self, source: usize, shot: &[[f64; 3]], receive: &mut dyn FnMut(usize, [f64; 3])) {
-        let range = self.source_elements(source);
-        let mean = shot_mean(self.mesh, range.clone(), self.patch_area[source], shot);
         self.with_column(source, |column| {
+            let w = self.weights(source);
+            let mut mean = [0.0; 3];
+            for (u, w) in shot.iter().zip(w) {
+                for c in 0..3 {
+                    mean[c] += u[c] * w;
+                }
+            }
             for (e, &f) in column.far.iter().enumerate() {
                 if f != 0.0 {
                     let f = f as f64;

@@ -1,16 +1,18 @@
 //! The dense element × patch coupling, computed up front.
 //!
 //! Unknowns live on two levels (substructuring, Cohen, Greenberg, Immel & Brock 1986):
-//! elements gather from patches at the patch's area-weighted mean radiosity
-//! B̄_q = Σ_{e∈q} A_e B_e / A_q, except that near pairs ([`NearField`]) link element to
+//! elements gather from patches at the patch's mean radiosity B̄_q = Σ_{e∈q} w_e B_e (the
+//! area mean, w_e = A_e / A_q, where no receiver is near the patch), except that near pairs ([`NearField`]) link element to
 //! element:
 //!
 //!   H_e = Σ_{far q} F_{e→q} B̄_q + Σ_{near e'} F_{e→e'} B_e'.
 //!
 //! The far factors are a dense row-major matrix of f32 (zero where the pair is near), the
-//! near links a sparse list per element.
+//! near links a sparse list per element. The mean far receivers see, B̄_q, weighs each
+//! element by the share of its power the near receivers leave (see [`super::far_weights`]),
+//! so that the coupling conserves energy whatever the radiosity does across a patch.
 
-use super::{patch_means, shot_mean, Coupling, NearField};
+use super::{far_means, far_weights, weighted_mean, Coupling, NearField};
 use crate::formfactor::Engine;
 use crate::mesh::Mesh;
 use crate::progress::Progress;
@@ -29,6 +31,8 @@ pub struct Dense<'a> {
     /// Receivers with near links to each patch (sorted).
     near_receivers: Vec<Vec<u32>>,
     patch_area: Vec<f64>,
+    /// Weight of each element in its patch's far mean ([`super::far_weights`]).
+    far_weight: Vec<f64>,
     form_factor_seconds: f64,
 }
 
@@ -72,6 +76,19 @@ impl<'a> Dense<'a> {
             })
             .collect();
         progress.finish();
+        // Σ_{near e} A_e F_{e→s} per source element s.
+        let mut taken = vec![0.0; n];
+        for (e, links) in near.iter().enumerate() {
+            let a = mesh.elements[e].area;
+            for &(s, f) in links {
+                taken[s as usize] += a * f as f64;
+            }
+        }
+        let mut far_weight = Vec::with_capacity(n);
+        for p in &mesh.patches {
+            let range = p.elements.start as usize..p.elements.end as usize;
+            far_weight.extend(far_weights(mesh, p, &taken[range]));
+        }
         Self {
             mesh,
             patches: m,
@@ -79,6 +96,7 @@ impl<'a> Dense<'a> {
             near,
             near_receivers: near_field.per_patch.clone(),
             patch_area: mesh.patches.iter().map(|p| mesh.patch_area(p)).collect(),
+            far_weight,
             form_factor_seconds: started.elapsed().as_secs_f64(),
         }
     }
@@ -124,9 +142,10 @@ impl<'a> Dense<'a> {
         h
     }
 
-    /// Area-weighted means of per-element values over each patch.
+    /// The means far receivers see of per-element values over each patch (weighted by
+    /// [`super::far_weights`]; area-weighted where no element is near).
     pub fn patch_means(&self, b: &[[f64; 3]]) -> Vec<[f64; 3]> {
-        patch_means(self.mesh, &self.patch_area, b)
+        far_means(self.mesh, &self.far_weight, b)
     }
 
     /// The patch-level system with near links summed back to their patches,
@@ -210,7 +229,7 @@ impl Coupling for Dense<'_> {
             let new = update(e, h);
             let q = el.patch.0 as usize;
             for c in 0..3 {
-                bp[q][c] += (new[c] - b[e][c]) * el.area / self.patch_area[q];
+                bp[q][c] += (new[c] - b[e][c]) * self.far_weight[e];
             }
             b[e] = new;
         }
@@ -224,11 +243,11 @@ impl Coupling for Dense<'_> {
         self.mesh.patches[source].elements.clone()
     }
 
-    /// Column `source` of the far matrix at the shot's mean, and the near receivers' links
-    /// to the source's elements at each element's own shot.
+    /// Column `source` of the far matrix at the shot's far mean, and the near receivers'
+    /// links to the source's elements at each element's own shot.
     fn shoot(&self, source: usize, shot: &[[f64; 3]], receive: &mut dyn FnMut(usize, [f64; 3])) {
         let range = self.source_elements(source);
-        let mean = shot_mean(self.mesh, range.clone(), self.patch_area[source], shot);
+        let mean = weighted_mean(range.clone(), &self.far_weight, shot);
         for e in 0..self.mesh.elements.len() {
             let f = self.data[e * self.patches + source] as f64;
             if f != 0.0 {

@@ -29,7 +29,7 @@ pub use columns::Columns;
 pub use dense::Dense;
 pub use near_field::NearField;
 
-use crate::mesh::Mesh;
+use crate::mesh::{Mesh, Patch};
 use std::ops::Range;
 
 /// How elements exchange light: the operator H = K(B) of the radiosity system
@@ -115,6 +115,67 @@ pub fn patch_means(mesh: &Mesh, patch_area: &[f64], b: &[[f64; 3]]) -> Vec<[f64;
                 }
             }
             m
+        })
+        .collect()
+}
+
+/// The weights with which a patch's **far** receivers see its elements, so that a two-level
+/// coupling conserves energy.
+///
+/// Far receivers gather from a patch p at one mean radiosity B̃_p = Σ_{s∈p} w_s B_s, near
+/// receivers from each element s at its own B_s. Element s sends the fraction
+/// N_s = Σ_{near e} A_e F_{e→s} / A_s of its power to the near receivers (reciprocity), so
+/// only B_s A_s (1 − N_s) is left for the far ones, which receive B̃_p Σ_{far e} A_e F_{e→p} =
+/// B̃_p (A_p − Σ_s A_s N_s) in all. Power is conserved for every distribution of B over the
+/// patch exactly when
+///
+///   w_s = A_s (1 − N_s) / Σ_{s'∈p} A_{s'} (1 − N_{s'}).
+///
+/// The plain area mean (w_s = A_s / A_p) agrees only when every N_s is the same; near a
+/// corner the elements next to the other wall give it more of their light than the rest of
+/// the patch does, so with the area mean the far receivers were credited with power that the
+/// near receivers had already taken, or denied power nobody took — a closed cube with
+/// ρ = 0.9 lost 0.6 % of its power per solve ("escaped"), and 1/(1 − ρ) bounces made every
+/// face 0.7 % dark. With no near receivers the weights are the area weights.
+///
+/// `taken[k]` is Σ_{near e} A_e F_{e→s} (m²) for the k-th element s of `patch`. Negative
+/// remainders (form-factor error) count as 0; if nothing is left for the far receivers
+/// (Σ w < 10⁻⁹ A_p) the area weights are returned. The weights sum to 1 over the patch.
+pub fn far_weights(mesh: &Mesh, patch: &Patch, taken: &[f64]) -> Vec<f64> {
+    let elements = &mesh.elements[patch.elements.start as usize..patch.elements.end as usize];
+    let area: f64 = elements.iter().map(|e| e.area).sum();
+    let left: Vec<f64> = elements
+        .iter()
+        .zip(taken)
+        .map(|(e, t)| (e.area - t).max(0.0))
+        .collect();
+    let total: f64 = left.iter().sum();
+    if total < 1e-9 * area || !total.is_finite() {
+        return elements.iter().map(|e| e.area / area).collect();
+    }
+    left.iter().map(|w| w / total).collect()
+}
+
+/// Σ_s w_s v_s over the elements `range` of a patch, with `weights` indexed by element
+/// (global index).
+pub fn weighted_mean(range: Range<u32>, weights: &[f64], values: &[[f64; 3]]) -> [f64; 3] {
+    let mut mean = [0.0; 3];
+    for (s, v) in range.zip(values) {
+        let w = weights[s as usize];
+        for c in 0..3 {
+            mean[c] += v[c] * w;
+        }
+    }
+    mean
+}
+
+/// [`weighted_mean`] of the per-element values `b` (indexed by element) over every patch.
+pub fn far_means(mesh: &Mesh, weights: &[f64], b: &[[f64; 3]]) -> Vec<[f64; 3]> {
+    mesh.patches
+        .iter()
+        .map(|p| {
+            let r = p.elements.start as usize..p.elements.end as usize;
+            weighted_mean(p.elements.clone(), weights, &b[r])
         })
         .collect()
 }

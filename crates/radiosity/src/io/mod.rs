@@ -2,6 +2,7 @@
 
 pub mod atomic;
 pub mod error;
+pub mod lights;
 pub mod obj;
 pub mod open;
 pub mod scene_file;

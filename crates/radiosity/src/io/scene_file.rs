@@ -33,6 +33,8 @@
 //!   have the same values).
 //! - `camera`: a pinhole camera; `up` defaults to +y, `fov_deg` is the vertical field of view
 //!   in degrees, in (0, 180). Without a camera, renderers frame the scene's bounds.
+//! - `lights`: point, spot and goniometric (IES, EULUMDAT) light sources with position,
+//!   aim and amount in lm, cd or W·sr⁻¹; see [`crate::io::lights`].
 //! - `settings`: defaults for the mesh, solver and renderer, see [`SceneSettings`]; the
 //!   command line overrides them. `null` is the same as leaving a setting out.
 //!
@@ -123,6 +125,8 @@ struct SceneFile {
     include: Vec<String>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     camera: Option<CameraEntry>,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    lights: Vec<crate::io::lights::LightEntry>,
     #[serde(default, skip_serializing_if = "is_default")]
     settings: SceneSettings,
 }
@@ -300,6 +304,7 @@ pub fn parse_scene_file(json: &str, path: &Path) -> Result<LoadedScene, SceneErr
         }
         scene.camera = Some(camera);
     }
+    scene.lights = crate::io::lights::lights_from_entries(&parsed.lights, dir, &file)?;
     if scene.surfaces.is_empty() {
         return Err(SceneError::Empty { file });
     }
@@ -361,6 +366,11 @@ pub fn scene_to_json(scene: &Scene, settings: &SceneSettings) -> Value {
             up: c.up.to_array(),
             fov_deg: c.fov_deg,
         }),
+        lights: scene
+            .lights
+            .iter()
+            .map(crate::io::lights::LightEntry::from_light)
+            .collect(),
         settings: settings.clone(),
     };
     // Plain data with string keys and finite numbers: serialisation cannot fail, and a

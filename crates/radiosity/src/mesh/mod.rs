@@ -147,6 +147,13 @@ pub struct Mesh {
     /// The meshed surface polygons (scene surfaces, split where other surfaces touch them),
     /// indexed like `surfaces`; element `surface` fields index these.
     pub surface_polygons: Vec<Polygon>,
+    /// Irradiance of each element straight from the scene's light sources (the first shot,
+    /// [`crate::direct`]), W·m⁻²; empty when the scene has none. Filled by the pipeline
+    /// once visibility is known ([`crate::direct::illuminate`]).
+    pub direct: Vec<[f64; 3]>,
+    /// Total flux of the scene's light sources, W per channel (emitted power besides the
+    /// emitting surfaces').
+    pub light_power: [f64; 3],
 }
 
 impl Mesh {
@@ -193,6 +200,8 @@ impl Mesh {
             surfaces: Vec::new(),
             objects: objects.clone(),
             surface_polygons: Vec::new(),
+            direct: Vec::new(),
+            light_power: [0.0; 3],
         };
         for (index, (scene_surface, polygon)) in pieces.iter().enumerate() {
             let surface = &scene.surfaces[*scene_surface];
@@ -246,6 +255,22 @@ impl Mesh {
     /// Emitted exitance of an element's surface, W·m⁻².
     pub fn exitance(&self, e: &Element) -> [f64; 3] {
         self.surfaces[e.surface as usize].exitance
+    }
+
+    /// Irradiance of element `i` straight from the light sources, W·m⁻² (zero without
+    /// lights).
+    pub fn direct(&self, i: usize) -> [f64; 3] {
+        self.direct.get(i).copied().unwrap_or([0.0; 3])
+    }
+
+    /// What element `i` puts into the radiosity system before any interreflection, W·m⁻²:
+    /// its emitted exitance plus the reflected first shot, E_i + ρ_i · direct_i. Every
+    /// solver solves B = source + ρ K(B).
+    pub fn source(&self, i: usize) -> [f64; 3] {
+        let e = &self.elements[i];
+        let surface = &self.surfaces[e.surface as usize];
+        let d = self.direct(i);
+        std::array::from_fn(|c| surface.exitance[c] + surface.reflectance[c] * d[c])
     }
 
     /// Corners of an element, counter-clockwise seen from its front.

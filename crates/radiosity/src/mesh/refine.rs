@@ -113,6 +113,8 @@ pub fn mark(mesh: &Mesh, radiosity: &[[f64; 3]], options: &RefineOptions) -> Vec
 
 /// Splits the marked elements into four ([`crate::geometry::subdivide`] of order 2: quads at
 /// edge midpoints and centre, triangles at edge midpoints). Patches are unchanged; each child records its parent's index in `mesh`.
+/// The first shot (`direct`) is kept for unsplit elements and NaN for the children, which
+/// the pipeline then lights ([`crate::direct::illuminate`]).
 /// Midpoints are shared with neighbours split in the same or an earlier pass.
 pub fn refine(mesh: &Mesh, marked: &[bool]) -> Mesh {
     let mut vertices = mesh.vertices.clone();
@@ -168,6 +170,19 @@ pub fn refine(mesh: &Mesh, marked: &[bool]) -> Mesh {
         }
         patches[pi].elements = first..elements.len() as u32;
     }
+    // The first shot carries over to unsplit elements; split ones are marked (NaN) for
+    // `direct::illuminate` to compute.
+    let direct = if mesh.direct.is_empty() {
+        Vec::new()
+    } else {
+        elements
+            .iter()
+            .map(|e| match e.parent {
+                Some(p) if mesh.elements[p as usize].depth == e.depth => mesh.direct[p as usize],
+                _ => [f64::NAN; 3],
+            })
+            .collect()
+    };
     Mesh {
         vertices,
         elements,
@@ -175,6 +190,8 @@ pub fn refine(mesh: &Mesh, marked: &[bool]) -> Mesh {
         surfaces: mesh.surfaces.clone(),
         objects: mesh.objects.clone(),
         surface_polygons: mesh.surface_polygons.clone(),
+        direct,
+        light_power: mesh.light_power,
     }
 }
 

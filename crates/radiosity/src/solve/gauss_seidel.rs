@@ -23,7 +23,7 @@ pub fn solve(
         &mut |b| {
             coupling.sweep(b, &mut |e, h| {
                 let el = &mesh.elements[e];
-                let (rho, ex) = (mesh.reflectance(el), mesh.exitance(el));
+                let (rho, ex) = (mesh.reflectance(el), mesh.source(e));
                 std::array::from_fn(|c| ex[c] + rho[c] * h[c])
             });
         },

@@ -1,5 +1,10 @@
 //! Solution of the radiosity system B = E + ρ K(B), per RGB channel, on a coupling.
 //!
+//! The source term is each element's emitted exitance plus the reflected first shot from
+//! the light sources, E_i + ρ_i · direct_i ([`Mesh::source`]); every solver and helper here
+//! uses it, so point, spot and goniometric lights reach every solver. The solution's
+//! irradiance H includes the direct part.
+//!
 //! The coupling ([`crate::coupling`]) is the operator H = K(B) (irradiance from radiosity);
 //! the solvers here only ask it to gather, sweep or shoot:
 //! - [`direct`]: Gaussian elimination — a dense LU (faer) of the dense coupling's patch-level
@@ -97,8 +102,10 @@ impl FromStr for SolverKind {
 pub struct SolveOptions {
     /// The solver.
     pub solver: SolverKind,
-    /// Iterative solvers: stop at this relative residual ‖(I − M)B − E‖₂ / ‖E‖₂.
-    /// Progressive: stop when the unshot power is below this fraction of the emitted power.
+    /// Stop when the estimated remaining error of every element relative to its own
+    /// radiosity (floored at 5 % of the mean) is at most this: from the change per step
+    /// for Jacobi and Gauss–Seidel ([`ErrorEstimate`]), from the unshot power's ambient
+    /// term for progressive refinement ([`progressive`]).
     pub tolerance: f64,
     /// Iteration cap for Jacobi and Gauss–Seidel.
     pub max_iterations: usize,
@@ -183,7 +190,8 @@ pub struct SolveStats {
 pub struct Solution {
     /// Radiosity B per element (emission included), W·m⁻².
     pub radiosity: Vec<[f64; 3]>,
-    /// Irradiance H per element, W·m⁻².
+    /// Irradiance H per element, W·m⁻²: from the other surfaces, K(B), plus straight from
+    /// the light sources ([`Mesh::direct`]).
     pub irradiance: Vec<[f64; 3]>,
     /// Unshot radiosity per element, W·m⁻² (zero for the matrix solvers).
     pub unshot: Vec<[f64; 3]>,
@@ -194,9 +202,10 @@ pub struct Solution {
 }
 
 impl Solution {
-    /// Emitted power Σ E_e A_e per channel, W.
+    /// Emitted power per channel, W: Σ E_e A_e of the emitting surfaces plus the flux of the
+    /// light sources ([`Mesh::light_power`]).
     pub fn emitted_power(mesh: &Mesh) -> [f64; 3] {
-        let mut p = [0.0; 3];
+        let mut p = mesh.light_power;
         for e in &mesh.elements {
             let ex = mesh.exitance(e);
             for c in 0..3 {
@@ -311,29 +320,32 @@ pub fn check_finite(solution: &Solution) -> Result<(), SolveError> {
     }
 }
 
-/// Emitted exitance E per element, W·m⁻².
+/// The source term per element, W·m⁻²: emitted exitance plus the reflected first shot,
+/// E + ρ · direct ([`Mesh::source`]); the emitted exitance alone when the scene has no
+/// light sources.
 pub fn exitance(mesh: &Mesh) -> Vec<[f64; 3]> {
-    mesh.elements.iter().map(|e| mesh.exitance(e)).collect()
+    (0..mesh.elements.len()).map(|i| mesh.source(i)).collect()
 }
 
-/// E + ρ H per element.
+/// source + ρ H per element (H the irradiance from the other surfaces, K(B)).
 pub fn reflect(mesh: &Mesh, irradiance: &[[f64; 3]]) -> Vec<[f64; 3]> {
     mesh.elements
         .iter()
         .zip(irradiance)
-        .map(|(e, h)| {
-            let (rho, ex) = (mesh.reflectance(e), mesh.exitance(e));
+        .enumerate()
+        .map(|(i, (e, h))| {
+            let (rho, ex) = (mesh.reflectance(e), mesh.source(i));
             std::array::from_fn(|c| ex[c] + rho[c] * h[c])
         })
         .collect()
 }
 
 /// Area-weighted relative difference ‖a − b‖ / ‖E‖ over elements and channels (‖E‖ from
-/// the mesh's emission; the absolute norm when nothing emits).
+/// the source term, [`exitance`]; the absolute norm when nothing emits).
 pub fn relative_difference(mesh: &Mesh, a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
     let (mut num, mut den) = (0.0, 0.0);
-    for ((e, x), y) in mesh.elements.iter().zip(a).zip(b) {
-        let ex = mesh.exitance(e);
+    for (i, ((e, x), y)) in mesh.elements.iter().zip(a).zip(b).enumerate() {
+        let ex = mesh.source(i);
         for c in 0..3 {
             num += e.area * (y[c] - x[c]).powi(2);
             den += e.area * ex[c] * ex[c];
@@ -478,14 +490,23 @@ pub fn residual(coupling: &dyn Coupling, b: &[[f64; 3]]) -> f64 {
     relative_difference(mesh, b, &next)
 }
 
-/// The complete solution for element radiosities `b`: H = K(B), and the escaped power
-/// Σ_e B_e A_e − Σ_e H_e A_e (what leaves all surfaces minus what lands on them).
+/// The complete solution for element radiosities `b`: H = K(B) + direct, and the escaped
+/// power Σ_e B_e A_e + Φ_lights − Σ_e H_e A_e (what leaves all surfaces and lights minus
+/// what lands on surfaces).
 pub fn solution_from(coupling: &dyn Coupling, b: Vec<[f64; 3]>, stats: SolveStats) -> Solution {
     let mesh = coupling.mesh();
-    let irradiance = coupling.gather(&b);
-    let mut escaped = [0.0; 3];
-    for ((e, bb), h) in mesh.elements.iter().zip(&b).zip(&irradiance) {
+    let mut irradiance = coupling.gather(&b);
+    let mut escaped = mesh.light_power;
+    for (i, ((e, bb), h)) in mesh
+        .elements
+        .iter()
+        .zip(&b)
+        .zip(&mut irradiance)
+        .enumerate()
+    {
+        let d = mesh.direct(i);
         for c in 0..3 {
+            h[c] += d[c];
             escaped[c] += (bb[c] - h[c]) * e.area;
         }
     }

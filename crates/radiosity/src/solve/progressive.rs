@@ -9,9 +9,25 @@
 //! light is). The coupling delivers each shot ([`Coupling::shoot`]): the on-the-fly
 //! [`crate::coupling::Columns`] computes columns as sources shoot and caches them while they
 //! fit in the memory limit. ω = 1 is plain shooting; ω > 1 overshoots
-//! (over-relaxation), leaving a negative unshot radiosity that later shots correct. Stops
-//! when the unshot power is below `tolerance` × emitted power, or after `max_shots`.
-//! Bookkeeping is exact: emitted = absorbed + escaped + unshot after every shot.
+//! (over-relaxation), leaving a negative unshot radiosity that later shots correct.
+//! Light sources other than surfaces enter as the first shot: elements start with
+//! B = u = E + ρ·direct ([`Mesh::source`]) and H = direct.
+//!
+//! Stopping rule: not the unshot power as a fraction of the emitted power, which lets a
+//! surface lit only by reflected light (a ceiling over downlights) stop short — its
+//! radiosity is a small part of the total, so an unshot fraction of 10⁻³ of the whole can
+//! still be several 10⁻³ of it — but an estimate of every element's remaining error
+//! relative to its own radiosity. The unshot power U, once shot and interreflected, raises
+//! the mean irradiance by the ambient term of Cohen et al. (1988), U / (A_T (1 − ρ̄)), so
+//! element e's radiosity still lacks about ρ_e times that; the solve stops when
+//!
+//!   max_e max_c ρ_{e,c} · ambient_c / max(B_e, β B̄) ≤ tolerance,
+//!
+//! with B_e the element's largest channel, B̄ the area-weighted mean and β = 0.05, the
+//! floor the stationary solvers' [`super::ErrorEstimate`] uses, so that black or unlit
+//! elements do not hold the solve up. Or after `max_shots`. The residual reported is the
+//! unshot power fraction. Bookkeeping is exact: emitted = absorbed + escaped + unshot after
+//! every shot.
 
 use super::observer::SolverClock;
 use super::{Flow, Observer, Solution, SolveOptions, SolveStats, SolverKind, Step, StepKind};
@@ -37,19 +53,28 @@ pub struct Progressive {
 }
 
 impl Progressive {
-    /// Starts with B = u = E on every element of the coupling's mesh.
+    /// Starts with B = u = E + ρ·direct on every element of the coupling's mesh, H = direct
+    /// (the first shot from the light sources, whose flux that misses every surface has
+    /// escaped).
     pub fn new(coupling: &dyn Coupling, options: &SolveOptions) -> Self {
         let mesh = coupling.mesh();
-        let radiosity: Vec<[f64; 3]> = mesh.elements.iter().map(|e| mesh.exitance(e)).collect();
+        let radiosity = super::exitance(mesh);
         let emitted = Solution::emitted_power(mesh).iter().sum();
+        let irradiance: Vec<[f64; 3]> = (0..mesh.elements.len()).map(|i| mesh.direct(i)).collect();
+        let mut escaped = mesh.light_power;
+        for (e, d) in mesh.elements.iter().zip(&irradiance) {
+            for c in 0..3 {
+                escaped[c] -= d[c] * e.area;
+            }
+        }
         let mut state = Self {
             overshoot: options.overshoot,
-            irradiance: vec![[0.0; 3]; mesh.elements.len()],
+            irradiance,
             unshot: radiosity.clone(),
             shot_total: vec![[0.0; 3]; mesh.elements.len()],
             radiosity,
             source_power: Vec::new(),
-            escaped: [0.0; 3],
+            escaped,
             emitted,
             shots: 0,
             clock: SolverClock::start(),
@@ -90,6 +115,39 @@ impl Progressive {
             return 0.0;
         }
         self.source_power.iter().sum::<f64>() / self.emitted
+    }
+
+    /// The stopping rule's estimate of the largest remaining error of any element relative
+    /// to its own radiosity (see the module docs): max_e max_c ρ_{e,c} ambient_c /
+    /// max(B_e, β B̄), 0 when nothing is unshot.
+    pub fn remaining_error(&self, mesh: &Mesh) -> f64 {
+        let (mut area, mut mean, mut unshot, mut rho) = (0.0, 0.0, [0.0; 3], [0.0; 3]);
+        for ((e, b), u) in mesh.elements.iter().zip(&self.radiosity).zip(&self.unshot) {
+            let r = mesh.reflectance(e);
+            area += e.area;
+            mean += e.area * b[0].max(b[1]).max(b[2]);
+            for c in 0..3 {
+                unshot[c] += e.area * u[c].abs();
+                rho[c] += e.area * r[c];
+            }
+        }
+        if area <= 0.0 || unshot.iter().all(|&u| u == 0.0) {
+            return 0.0;
+        }
+        let floor = super::DARK_FLOOR * mean / area;
+        let ambient: [f64; 3] = std::array::from_fn(|c| unshot[c] / area / (1.0 - rho[c] / area));
+        let mut worst: f64 = 0.0;
+        for (e, b) in mesh.elements.iter().zip(&self.radiosity) {
+            let scale = b[0].max(b[1]).max(b[2]).max(floor);
+            if scale <= 0.0 {
+                continue;
+            }
+            let r = mesh.reflectance(e);
+            for c in 0..3 {
+                worst = worst.max(r[c] * ambient[c] / scale);
+            }
+        }
+        worst
     }
 
     /// Shoots the source with the largest unshot power; returns false when nothing is left.
@@ -147,9 +205,10 @@ impl Progressive {
         true
     }
 
-    /// Shoots until the unshot fraction is at most `tolerance`, `max_shots` shots were
-    /// taken in all, nothing is left, or the observer stops it; every shot is reported.
-    /// Returns whether it ran out of power to shoot.
+    /// Shoots until every element's estimated remaining error ([`Progressive::remaining_error`])
+    /// is at most `tolerance`, `max_shots` shots were taken in all, nothing is left, or the
+    /// observer stops it; every shot is reported. Returns whether it ran out of power to
+    /// shoot.
     pub fn run(
         &mut self,
         coupling: &dyn Coupling,
@@ -166,7 +225,9 @@ impl Progressive {
         };
         let mut flow = self.report(mesh, kind, tolerance, observer);
         let mut exhausted = false;
-        while flow == Flow::Continue && self.shots < max_shots && self.unshot_fraction() > tolerance
+        while flow == Flow::Continue
+            && self.shots < max_shots
+            && self.remaining_error(mesh) > tolerance
         {
             if !self.shoot(coupling) {
                 exhausted = true;
@@ -222,7 +283,8 @@ impl Progressive {
         let unshot: Vec<[f64; 3]> = mesh
             .elements
             .iter()
-            .map(|e| parent(e).map_or(mesh.exitance(e), |p| self.unshot[p]))
+            .enumerate()
+            .map(|(i, e)| parent(e).map_or(mesh.source(i), |p| self.unshot[p]))
             .collect();
         let kept = |e: &crate::mesh::Element| matches!(parent(e), Some(p) if old.elements[p].depth == e.depth);
         let new: Vec<u32> = mesh
@@ -247,9 +309,10 @@ impl Progressive {
         }
         for (&i, h) in new.iter().zip(gathered) {
             let e = &mesh.elements[i as usize];
-            let (rho, ex) = (mesh.reflectance(e), mesh.exitance(e));
+            let (rho, ex) = (mesh.reflectance(e), mesh.source(i as usize));
+            let d = mesh.direct(i as usize);
             radiosity[i as usize] = std::array::from_fn(|c| ex[c] + rho[c] * h[c]);
-            irradiance[i as usize] = h;
+            irradiance[i as usize] = std::array::from_fn(|c| h[c] + d[c]);
         }
         self.radiosity = radiosity;
         self.irradiance = irradiance;

@@ -888,7 +888,7 @@ impl Hierarchical {
     }
 
     /// A link with a wide (not oriented) cluster at an end: allowed only when an upper bound
-    /// of its transfer is below the threshold, as an isotropic exchange spread uniformly;
+    /// of its transfer is below the threshold, as a sampled exchange spread uniformly;
     /// otherwise the wide cluster must open.
     fn wide(&self, p: u32, q: u32, open_p: bool, open_q: bool) -> Estimate {
         let (np, nq) = (&self.tree.nodes[p as usize], &self.tree.nodes[q as usize]);
@@ -902,22 +902,39 @@ impl Hierarchical {
             must_open_p: open_p,
             must_open_q: open_q,
         };
-        if gap <= 0.0 {
+        // A wide receiving cluster opens: spread uniformly, its members facing the source
+        // and those facing away would read the same irradiance.
+        if gap <= 0.0 || open_p {
             return must;
         }
         // Of the power leaving q, at most A_p/(π gap²) of it can reach p: the bound on the
         // irradiance per unit source radiosity is A_q/(π gap²).
         let bound = nq.area / (PI * gap * gap);
-        // Isotropic estimate (Sillion 1995): projected areas A/4 at both ends.
+        // The mean irradiance over p per unit radiosity of q, A_q · ⟨cos θ_y cos θ_x V/(π r²)⟩
+        // over pairs of area-stratified sample points of both ends with their own normals
+        // (one-sided: a member facing away neither emits nor receives). Unbiased where the
+        // isotropic projected area A/4 of Sillion (1995) is not: inside a room the surfaces
+        // of one cluster face the other's, and A/4 lost a quarter of the light of a finely
+        // tessellated Cornell box.
         let xs = self.tree.sample_points(p, self.options.cluster_samples);
         let ys = self.tree.sample_points(q, self.options.cluster_samples);
-        let mut seen = 0usize;
-        for (i, &(x, nx)) in xs.iter().enumerate() {
-            let (y, ny) = ys[i % ys.len().max(1)];
-            seen += usize::from(self.visibility.visible(x, nx, y, ny));
+        let mut sum = 0.0;
+        for &(x, nx) in &xs {
+            for &(y, ny) in &ys {
+                let d = x - y;
+                let r2 = d.length_squared();
+                let cos_y = ny.dot(d);
+                let cos_x = -nx.dot(d);
+                if r2 <= 0.0 || cos_y <= 0.0 || cos_x <= 0.0 {
+                    continue;
+                }
+                if self.visibility.visible(x, nx, y, ny) {
+                    sum += cos_x * cos_y / (r2 * r2);
+                }
+            }
         }
-        let v = seen as f64 / xs.len().max(1) as f64;
-        let c = nq.area / (16.0 * PI * r * r) * v;
+        let pairs = (xs.len() * ys.len()).max(1) as f64;
+        let c = nq.area / PI * sum / pairs;
         Estimate {
             transfer: Some(Transfer::Uniform(c as f32)),
             delta: bound,
