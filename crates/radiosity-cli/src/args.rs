@@ -19,7 +19,7 @@ use std::path::PathBuf;
 #[command(name = "radiosity", version, about = "Physically based diffuse global illumination by the radiosity method", long_about = None)]
 pub struct Cli {
     /// Worker threads [default: one per core].
-    #[arg(long, global = true, value_name = "N")]
+    #[arg(long, global = true, value_name = "N", allow_hyphen_values = true)]
     pub threads: Option<usize>,
     /// The command.
     #[command(subcommand)]
@@ -43,6 +43,10 @@ pub enum Command {
     /// Solve a scene (or load a saved solution) and show it live in a web browser: a local
     /// server on 127.0.0.1 whose address is printed; Ctrl-C stops it.
     View(crate::cmd_view::ViewCmdArgs),
+    /// Print the shell completion script for bash, zsh, fish, elvish or powershell.
+    Completions(crate::cmd_shell::CompletionsArgs),
+    /// Print the manual page (roff), or write one page per command with -o DIR.
+    Man(crate::cmd_shell::ManArgs),
     /// Illuminance (lx) at point sensors and on work-plane grids: JSON, CSV and false-colour
     /// PNG with Emin, Ē, Emax and the uniformity U0.
     Measure(crate::cmd_measure::MeasureArgs),

@@ -10,8 +10,19 @@ use radiosity::mesh::Mesh;
 use radiosity_studies::compare::{compare, CompareOptions};
 use std::path::PathBuf;
 
-/// `radiosity compare`.
+/// `radiosity compare`. The shared solve options' help is adjusted where compare differs:
+/// its own ω default, and no solver choice or adaptive meshing (it runs every solver on one
+/// uniform mesh).
 #[derive(Debug, Args)]
+#[command(
+    mut_arg("overshoot", |a| a.help(
+        "ω of the overshooting progressive run, 1 < ω < 2 [default: 1.1]"
+    )),
+    mut_arg("solver", |a| a.hide(true)),
+    mut_arg("adaptive", |a| a.hide(true)),
+    mut_arg("refine_threshold", |a| a.hide(true)),
+    mut_arg("max_depth", |a| a.hide(true))
+)]
 pub struct CompareArgs {
     /// Scene file (.obj, .gltf, .glb, .mgf or .json); the built-in Cornell box if omitted.
     pub scene: Option<PathBuf>,

@@ -21,8 +21,8 @@ pub struct FormfactorArgs {
     /// all [default: raycast].
     #[arg(long, value_name = "NAME")]
     pub method: Option<String>,
-    /// point-sampled: sub-areas per polygon [default: 4096]; monte-carlo: rays per direction
-    /// [default: 1048576].
+    /// point-sampled: sub-areas per polygon [default: 4096, at most 65536]; monte-carlo: rays
+    /// per direction [default: 1048576, at most 2^30].
     #[arg(long, value_name = "N")]
     pub samples: Option<usize>,
     /// hemicube: pixels along the hemi-cube's top face [default: 128].
@@ -40,6 +40,14 @@ pub struct FormfactorArgs {
     pub table: bool,
 }
 
+/// The most sub-areas per polygon for point-sampled: 2¹⁶ sub-areas make 2³² point pairs,
+/// minutes of work; the default is 4096.
+const MAX_SUBAREAS: usize = 1 << 16;
+/// The most Monte Carlo rays per direction: 2³⁰ (the default is 2²⁰), minutes of work.
+const MAX_RAYS: usize = 1 << 30;
+/// The largest hemi-cube: 8192² pixels on the top face (the default is 128).
+const MAX_RESOLUTION: usize = 8192;
+
 pub fn run(args: FormfactorArgs) -> Result<()> {
     let methods: Vec<FormFactorMethod> = match args.method.as_deref() {
         None => {
@@ -52,11 +60,25 @@ pub fn run(args: FormfactorArgs) -> Result<()> {
         Some("all") => FormFactorMethod::ALL.to_vec(),
         Some(name) => vec![name.parse().map_err(anyhow::Error::msg)?],
     };
-    if args.samples == Some(0) {
-        bail!("--samples must be at least 1");
+    if let Some(samples) = args.samples {
+        // The tightest cap of the methods that will run (the cap is checked before any work,
+        // so a typo cannot start a job of days or an allocation that aborts).
+        let (cap, what) = if methods.contains(&FormFactorMethod::PointSampled) {
+            (
+                MAX_SUBAREAS,
+                "for point-sampled (sub-areas per polygon; the work grows as their square)",
+            )
+        } else {
+            (MAX_RAYS, "(monte-carlo: rays per direction)")
+        };
+        if !(1..=cap).contains(&samples) {
+            bail!("--samples must be a whole number from 1 to {cap} {what}, got {samples}");
+        }
     }
-    if args.resolution == Some(0) {
-        bail!("--resolution must be at least 1");
+    if let Some(resolution) = args.resolution {
+        if !(1..=MAX_RESOLUTION).contains(&resolution) {
+            bail!("--resolution must be a whole number from 1 to {MAX_RESOLUTION} pixels, got {resolution}");
+        }
     }
     let settings = PairSettings {
         samples: args.samples,
@@ -71,8 +93,8 @@ pub fn run(args: FormfactorArgs) -> Result<()> {
     let Some(path) = args.file else {
         bail!("give a problem file, or --table");
     };
-    let text =
-        std::fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?;
+    let text = radiosity::io::open::read_to_string_checked(&path, radiosity::io::open::Kind::Small)
+        .with_context(|| format!("reading {}", path.display()))?;
     let problem =
         PairProblem::from_json(&text).with_context(|| format!("loading {}", path.display()))?;
     for method in methods {

@@ -29,6 +29,8 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Progressive(args) => crate::cmd_progressive::run(args),
         Command::Compare(args) => crate::cmd_compare::run(args),
         Command::View(args) => crate::cmd_view::run(args),
+        Command::Completions(args) => crate::cmd_shell::completions(args),
+        Command::Man(args) => crate::cmd_shell::man(args),
         Command::Measure(args) => crate::cmd_measure::run(args),
     }
 }
@@ -71,8 +73,8 @@ pub(crate) fn load_scene(path: Option<&Path>, solve: &SolveArgs) -> Result<Loade
             }
         }
         Some(p) => {
-            let loaded =
-                load_any_with(p, &options).with_context(|| format!("loading {}", p.display()))?;
+            // Scene errors name the file (and line, object) themselves.
+            let loaded = load_any_with(p, &options)?;
             Loaded {
                 scene: loaded.scene,
                 file_settings: loaded.settings,
@@ -220,9 +222,7 @@ fn solve(args: SolveCmdArgs) -> Result<()> {
         .with_context(|| format!("writing report {}", path.display()))?;
     }
     if let Some(path) = &args.save {
-        SolutionFile::new(&scene.name, scene.camera, &solved.mesh, &solved.solution)
-            .save(path)
-            .with_context(|| format!("saving solution {}", path.display()))?;
+        SolutionFile::new(&scene.name, scene.camera, &solved.mesh, &solved.solution).save(path)?;
     }
     if let (Some(path), Some(options)) = (&args.bake, &export_options) {
         let radiosity = solved.solution.display_radiosity(&solved.mesh, false);
@@ -274,8 +274,8 @@ fn render(args: RenderArgs) -> Result<()> {
     let (vertices, elements, radiosity, camera, output, settings) = if let Some(path) =
         &args.solution
     {
-        let file = SolutionFile::load(path)
-            .with_context(|| format!("loading solution {}", path.display()))?;
+        // Solution-file errors name the file and the key themselves.
+        let file = SolutionFile::load(path)?;
         let settings = resolve(None, &flags)?;
         let output = output_for(Some(path), &file.scene)?;
         let base = file.camera.map(Camera::from).unwrap_or_default();

@@ -7,8 +7,10 @@ mod cmd_falsecolour;
 mod cmd_formfactor;
 mod cmd_measure;
 mod cmd_progressive;
+mod cmd_shell;
 mod cmd_view;
 mod commands;
+mod interrupt;
 mod progress;
 mod view;
 
@@ -32,9 +34,10 @@ fn main() -> ExitCode {
             return code;
         }
     };
+    interrupt::remove_temporaries_on_signal();
     if let Some(n) = cli.threads {
-        if n == 0 {
-            eprintln!("error: --threads must be at least 1, got 0");
+        if !(1..=MAX_THREADS).contains(&n) {
+            eprintln!("error: --threads must be a whole number from 1 to {MAX_THREADS}, got {n}");
             return ExitCode::FAILURE;
         }
         if let Err(e) = rayon::ThreadPoolBuilder::new()
@@ -48,8 +51,29 @@ fn main() -> ExitCode {
     match commands::run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e:#}");
+            eprintln!("error: {}", message(&e));
             ExitCode::FAILURE
         }
     }
+}
+
+/// The most worker threads `--threads` accepts.
+const MAX_THREADS: usize = 1024;
+
+/// The error and its causes joined by ": ", each said once: library errors that already
+/// quote their cause in their own message (`file: line 3: polygon has 2 distinct
+/// vertices…`) also return it as their source, and printing both would repeat it.
+fn message(error: &anyhow::Error) -> String {
+    let mut out = String::new();
+    for cause in error.chain() {
+        let text = cause.to_string();
+        if text.is_empty() || out.contains(&text) {
+            continue;
+        }
+        if !out.is_empty() {
+            out.push_str(": ");
+        }
+        out.push_str(&text);
+    }
+    out
 }

@@ -32,8 +32,8 @@
 pub mod accel;
 pub mod cornell;
 pub mod coupling;
-pub mod direct;
 pub mod diagnose;
+pub mod direct;
 pub mod display;
 pub mod export;
 pub mod formfactor;

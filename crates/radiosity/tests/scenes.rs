@@ -547,8 +547,9 @@ fn json_semantic_errors() {
     let json = r#"{"include": ["missing.obj"]}"#;
     expect_error(
         &[("bad.json", json)],
-        |e| matches!(e, SceneError::Read { .. }),
-        &["missing.obj"],
+        // The error in the included file, wrapped so that the message names both files.
+        |e| matches!(e, SceneError::Included { source, .. } if matches!(**source, SceneError::Read { .. })),
+        &["bad.json", "missing.obj"],
     );
     let json = r#"{"include": ["box.obj"], "materials": [{"name": "white", "reflectance": [0.1, 0.1, 0.1]}]}"#;
     let obj = "mtllib bad.mtl\nusemtl white\nv 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 3\n";

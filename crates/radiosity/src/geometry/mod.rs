@@ -9,6 +9,7 @@
 
 pub mod clip;
 pub mod lattice;
+mod triangulate;
 
 pub use clip::{clip_convex, clip_to_halfspace, ClipOutput, ClipVertex, FixedPolygon};
 pub use lattice::{sub_areas, subdivide, Lattice};
@@ -39,6 +40,14 @@ pub enum GeometryError {
     #[error("polygon is not convex")]
     /// The polygon is not convex.
     NonConvex,
+    #[error("polygon crosses itself (edge {edge} crosses another edge)")]
+    /// Two edges of the loop cross (a bow-tie quad, a pentagram), or the loop touches
+    /// itself so that it cannot be split into triangles; its area would be wrong.
+    SelfIntersecting {
+        /// The 1-based position in the loop of the first vertex of an edge that crosses
+        /// another.
+        edge: usize,
+    },
     #[error("polygon coordinate {value:e} m is out of range (|x| must stay below {limit:e} m)")]
     /// A coordinate beyond [`COORDINATE_LIMIT`].
     OutOfRange {
@@ -316,20 +325,27 @@ fn plane_deviation(vertices: &[DVec3], normal: DVec3) -> f64 {
         .fold(0.0, f64::max)
 }
 
+/// Convex: every turn is to the left (or straight), and the turns add up to one full turn,
+/// so that a star polygon (a pentagram, whose turns are all to the left but add up to two
+/// turns) is not taken for convex.
 fn is_convex(vertices: &[DVec3], normal: DVec3) -> bool {
     let n = vertices.len();
     let scale = diameter(vertices);
+    let mut turning = 0.0;
     for i in 0..n {
         let a = vertices[i];
         let b = vertices[(i + 1) % n];
         let c = vertices[(i + 2) % n];
-        let turn = (b - a).cross(c - b).dot(normal);
+        let (e, f) = (b - a, c - b);
+        let turn = e.cross(f).dot(normal);
         // Collinear consecutive vertices (turn ~ 0) are allowed: they are hanging vertices.
         if turn < -1e-12 * scale * scale {
             return false;
         }
+        turning += turn.atan2(e.dot(f));
     }
-    true
+    // One turn is 2π; a loop winding twice turns 4π. Rounding is far below π.
+    (turning - std::f64::consts::TAU).abs() < std::f64::consts::PI
 }
 
 /// Turns an input face into valid polygons: convex planar faces pass through; a non-planar
@@ -356,41 +372,20 @@ pub fn split_into_convex(vertices: Vec<DVec3>) -> Result<Vec<Polygon>, GeometryE
     }
 }
 
+/// Splits a planar face that is not convex into triangles ([`triangulate::ear_clip`]),
+/// after checking that no two of its edges cross ([`triangulate::crossing`]).
 fn ear_clip(vertices: Vec<DVec3>) -> Result<Vec<Polygon>, GeometryError> {
     let (normal, _) = newell(&vertices);
-    let mut idx: Vec<usize> = (0..vertices.len()).collect();
-    let mut out = Vec::new();
-    let inside = |p: DVec3, a: DVec3, b: DVec3, c: DVec3| {
-        (b - a).cross(p - a).dot(normal) >= 0.0
-            && (c - b).cross(p - b).dot(normal) >= 0.0
-            && (a - c).cross(p - c).dot(normal) >= 0.0
-    };
-    while idx.len() > 3 {
-        let n = idx.len();
-        let mut clipped = false;
-        for i in 0..n {
-            let (ia, ib, ic) = (idx[(i + n - 1) % n], idx[i], idx[(i + 1) % n]);
-            let (a, b, c) = (vertices[ia], vertices[ib], vertices[ic]);
-            if (b - a).cross(c - b).dot(normal) <= 0.0 {
-                continue;
-            }
-            let blocked = idx
-                .iter()
-                .filter(|&&k| k != ia && k != ib && k != ic)
-                .any(|&k| inside(vertices[k], a, b, c));
-            if !blocked {
-                out.push(Polygon::new(vec![a, b, c])?);
-                idx.remove(i);
-                clipped = true;
-                break;
-            }
-        }
-        if !clipped {
-            return Err(GeometryError::NonConvex);
-        }
+    let planar = triangulate::Planar::new(&vertices, normal);
+    if let Some(edge) = triangulate::crossing(&planar) {
+        return Err(GeometryError::SelfIntersecting { edge: edge + 1 });
     }
-    out.push(Polygon::new(idx.iter().map(|&k| vertices[k]).collect())?);
-    Ok(out)
+    let triangles =
+        triangulate::ear_clip(&planar).ok_or(GeometryError::SelfIntersecting { edge: 1 })?;
+    triangles
+        .into_iter()
+        .map(|t| Polygon::new(t.iter().map(|&k| vertices[k]).collect()))
+        .collect()
 }
 
 #[cfg(test)]
@@ -453,6 +448,30 @@ mod tests {
         let area: f64 = parts.iter().map(Polygon::area).sum();
         assert!((area - 3.0).abs() < 1e-12);
         assert!(parts.iter().all(|p| p.normal().z > 0.99));
+    }
+
+    #[test]
+    fn self_intersecting_polygons_are_rejected() {
+        let v = |x: f64, y: f64| DVec3::new(x, y, 0.0);
+        // A bow-tie with lobes of different sizes: its Newell area (3/4 − 1/12) is not the
+        // area it covers, so accepting it would be silently wrong.
+        let bow_tie = vec![v(0.0, 0.0), v(2.0, 2.0), v(2.0, 0.0), v(0.0, 1.0)];
+        assert!(matches!(
+            split_into_convex(bow_tie),
+            Err(GeometryError::SelfIntersecting { .. })
+        ));
+        // A pentagram: every turn is to the left, but the loop winds twice.
+        let star: Vec<DVec3> = (0..5)
+            .map(|k| {
+                let a = std::f64::consts::TAU * (2 * k) as f64 / 5.0;
+                v(a.cos(), a.sin())
+            })
+            .collect();
+        assert_eq!(Polygon::new(star.clone()), Err(GeometryError::NonConvex));
+        assert!(matches!(
+            split_into_convex(star),
+            Err(GeometryError::SelfIntersecting { .. })
+        ));
     }
 
     #[test]

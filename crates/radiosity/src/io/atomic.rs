@@ -2,18 +2,101 @@
 //!
 //! A crash, a full disk or an encoder error part-way through never leaves a truncated file
 //! under the final name: readers see either the old file (or none) or the complete new one.
+//!
+//! Temporary files are named `.<name>.<pid>-<n>.tmp` beside the target and recorded while
+//! they exist, so that an interrupted program can remove them ([`remove_temporaries`], which
+//! the command line calls on SIGINT and SIGTERM): an interrupted write leaves nothing behind.
+//! Error messages never mention the temporary name.
 
+use std::fs::{File, OpenOptions};
 use std::io::{self, BufWriter, Write};
-use std::path::Path;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Mutex;
+
+/// Temporary files that exist now, to be removed if the program is interrupted.
+static IN_FLIGHT: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+/// Makes temporary names unique within the process.
+static COUNTER: AtomicU64 = AtomicU64::new(0);
+
+/// A temporary file recorded in [`IN_FLIGHT`]; dropping it removes the file (if it is still
+/// there, i.e. was not renamed into place) and the record.
+struct Temporary {
+    path: PathBuf,
+}
+
+impl Temporary {
+    /// Creates `.<name>.<pid>-<n>.tmp` in `dir`, recorded before it is created so that an
+    /// interruption in between still finds it.
+    fn create(dir: &Path, name: &std::ffi::OsStr) -> io::Result<(Self, File)> {
+        let mut file_name = std::ffi::OsString::from(".");
+        file_name.push(name);
+        file_name.push(format!(
+            ".{}-{}.tmp",
+            std::process::id(),
+            COUNTER.fetch_add(1, Ordering::Relaxed)
+        ));
+        let path = dir.join(file_name);
+        if let Ok(mut list) = IN_FLIGHT.lock() {
+            list.push(path.clone());
+        }
+        let temporary = Self { path };
+        let mut options = OpenOptions::new();
+        options.write(true).create_new(true);
+        // The output gets the permissions `File::create` would give it (0o666 less the
+        // umask), which `create_new` also uses.
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::OpenOptionsExt;
+            options.mode(0o666);
+        }
+        let file = options.open(&temporary.path)?;
+        Ok((temporary, file))
+    }
+}
+
+impl Drop for Temporary {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.path);
+        if let Ok(mut list) = IN_FLIGHT.lock() {
+            list.retain(|p| p != &self.path);
+        }
+    }
+}
+
+/// The temporary files of the writes in progress now.
+pub fn temporaries() -> Vec<PathBuf> {
+    IN_FLIGHT
+        .lock()
+        .map(|list| list.clone())
+        .unwrap_or_default()
+}
+
+/// Removes every temporary file that a write in progress has created. For signal handlers:
+/// call it, then exit.
+pub fn remove_temporaries() {
+    if let Ok(list) = IN_FLIGHT.lock() {
+        for path in list.iter() {
+            let _ = std::fs::remove_file(path);
+        }
+    }
+}
+
+/// The directory a file path lives in (`.` for a bare name).
+fn directory_of(path: &Path) -> &Path {
+    match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    }
+}
 
 /// Writes a file atomically: `write` fills a temporary file in the same directory as `path`,
 /// which is flushed, synced and renamed over `path` only when `write` returns `Ok`.
 ///
 /// On any error (from `write`, from the file system, or a `path` without a file name) the
 /// temporary file is removed and `path` is left as it was. The new file gets the usual
-/// permissions of a newly created file (0o666 less the umask on Unix), not the owner-only
-/// permissions of a temporary file. The temporary file lives beside the target because a
-/// rename is only atomic within one file system.
+/// permissions of a newly created file (0o666 less the umask on Unix). The temporary file
+/// lives beside the target because a rename is only atomic within one file system.
 ///
 /// See also `std::fs::write` (not atomic).
 pub fn write_atomically(
@@ -26,29 +109,14 @@ pub fn write_atomically(
             format!("{} does not name a file", path.display()),
         ));
     };
-    let dir = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
-    let mut prefix = std::ffi::OsString::from(".");
-    prefix.push(file_name);
-    prefix.push(".");
-    let mut builder = tempfile::Builder::new();
-    builder.prefix(&prefix).suffix(".tmp");
-    // A temporary file is owner-only; the output should get the permissions `File::create`
-    // would give it (0o666 less the umask).
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::PermissionsExt;
-        builder.permissions(std::fs::Permissions::from_mode(0o666));
-    }
-    let temp = builder.tempfile_in(dir)?;
-
-    let mut out = BufWriter::new(temp);
+    let (temporary, file) = Temporary::create(directory_of(path), file_name)?;
+    let mut out = BufWriter::new(file);
     write(&mut out)?;
-    let temp = out.into_inner().map_err(io::IntoInnerError::into_error)?;
-    temp.as_file().sync_all()?;
-    temp.persist(path).map_err(|e| e.error)?;
+    let file = out.into_inner().map_err(io::IntoInnerError::into_error)?;
+    file.sync_all()?;
+    drop(file);
+    std::fs::rename(&temporary.path, path)?;
+    drop(temporary);
     Ok(())
 }
 
@@ -56,25 +124,26 @@ pub fn write_atomically(
 /// file (not a directory) in an existing directory where a file can be created. Nothing is
 /// left behind.
 pub fn check_writable(path: &Path) -> io::Result<()> {
-    if path.file_name().is_none() || path.is_dir() {
+    let Some(file_name) = path.file_name() else {
         return Err(io::Error::new(
             io::ErrorKind::InvalidInput,
             "does not name a file",
         ));
-    }
-    let dir = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
     };
+    if path.is_dir() {
+        return Err(io::Error::new(
+            io::ErrorKind::InvalidInput,
+            "is a directory, not a file",
+        ));
+    }
+    let dir = directory_of(path);
     if !dir.is_dir() {
         return Err(io::Error::new(
             io::ErrorKind::NotFound,
             format!("directory {} does not exist", dir.display()),
         ));
     }
-    let probe = tempfile::Builder::new()
-        .prefix(".radiosity-write-test-")
-        .tempfile_in(dir)?;
+    let (probe, _file) = Temporary::create(dir, file_name)?;
     drop(probe);
     Ok(())
 }
@@ -131,6 +200,32 @@ mod tests {
         let path = dir.path().join("no_such_dir").join("out.txt");
         assert!(write_atomically(&path, |w| w.write_all(b"x")).is_err());
         assert!(!path.exists());
+        assert!(entries(dir.path()).is_empty());
+    }
+
+    #[test]
+    fn interrupted_writes_can_be_cleaned_up() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("out.txt");
+        let err = write_atomically(&path, |w| {
+            w.write_all(b"partial")?;
+            w.flush()?;
+            // What a signal handler sees in the middle of a write (other tests may be
+            // writing elsewhere at the same time, so only this directory's are removed).
+            let ours: Vec<PathBuf> = temporaries()
+                .into_iter()
+                .filter(|p| p.parent() == Some(dir.path()))
+                .collect();
+            assert_eq!(ours.len(), 1);
+            assert_eq!(entries(dir.path()).len(), 1);
+            for p in ours {
+                std::fs::remove_file(p).unwrap();
+            }
+            assert!(entries(dir.path()).is_empty());
+            Err(io::Error::other("interrupted"))
+        })
+        .unwrap_err();
+        assert_eq!(err.to_string(), "interrupted");
         assert!(entries(dir.path()).is_empty());
     }
 

@@ -181,6 +181,15 @@ pub enum SceneError {
     /// A glTF file that cannot be read (its message names the file and the part of it).
     #[error(transparent)]
     Gltf(#[from] crate::io::gltf::GltfError),
+    /// An error in a file included by a scene file; the message names both.
+    #[error("{file}: include {source}")]
+    Included {
+        /// The scene file that includes it, as the user named it.
+        file: String,
+        /// The error in the included file (which names that file).
+        #[source]
+        source: Box<SceneError>,
+    },
     /// The input defines no surfaces at all.
     #[error("{file}: scene has no surfaces")]
     Empty {

@@ -349,11 +349,14 @@ pub enum GltfError {
 /// Errors name the file as given in `path`.
 pub fn load_gltf(path: &Path, options: &GltfOptions) -> Result<GltfScene, GltfError> {
     let file = path.display().to_string();
-    let bytes = std::fs::read(path).map_err(|source| GltfError::Read {
-        file: file.clone(),
-        what: "the file".to_owned(),
-        source,
-    })?;
+    let bytes =
+        crate::io::open::read_checked(path, crate::io::open::Kind::Geometry).map_err(|source| {
+            GltfError::Read {
+                file: file.clone(),
+                what: "the file".to_owned(),
+                source,
+            }
+        })?;
     let dir = path.parent().unwrap_or(Path::new("")).to_path_buf();
     let name = path
         .file_stem()
@@ -661,7 +664,8 @@ fn read_uri(
         what: what.clone(),
         source,
     };
-    let handle = std::fs::File::open(&path).map_err(read_error)?;
+    let handle = crate::io::open::open_checked(&path, crate::io::open::Kind::Geometry)
+        .map_err(read_error)?;
     let mut data = Vec::new();
     match limit {
         Some(limit) => handle

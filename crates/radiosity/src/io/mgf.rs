@@ -435,13 +435,17 @@ pub fn load_mgf(path: &Path) -> Result<MgfScene> {
 /// Loads an MGF file and the files it includes with the given options.
 pub fn load_mgf_with(path: &Path, options: &MgfOptions) -> Result<MgfScene> {
     let file = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|source| MgfError::Read {
-        file: file.clone(),
-        source,
-    })?;
+    let text = crate::io::open::read_to_string_checked(path, crate::io::open::Kind::Geometry)
+        .map_err(|source| MgfError::Read {
+            file: file.clone(),
+            source,
+        })?;
     let dir = path.parent().unwrap_or(Path::new("")).to_path_buf();
     parse_mgf_with(&text, &file, options, |relative| {
-        std::fs::read_to_string(dir.join(relative))
+        crate::io::open::read_to_string_checked(
+            &dir.join(relative),
+            crate::io::open::Kind::Geometry,
+        )
     })
 }
 

@@ -3,11 +3,12 @@
 
 pub mod atomic;
 pub mod error;
-pub mod lights;
 pub mod formats;
 pub mod gltf;
+pub mod lights;
 pub mod mgf;
 pub mod obj;
+pub mod open;
 pub mod scene_file;
 pub mod solution_file;
 

@@ -42,6 +42,7 @@
 
 use crate::geometry::{split_into_convex, GeometryError};
 use crate::io::error::{Location, SceneError};
+use crate::io::open::{read_to_string_checked, Kind};
 use crate::scene::{Material, MaterialId, Origin, Scene, Surface};
 use glam::DVec3;
 use std::collections::HashMap;
@@ -87,7 +88,7 @@ pub fn load_obj(path: &Path) -> Result<Scene, SceneError> {
 /// Loads an OBJ file and the MTL files it names, with its warnings.
 pub fn load_obj_with(path: &Path, options: &ObjOptions) -> Result<ObjScene, SceneError> {
     let file = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|source| SceneError::Read {
+    let text = read_to_string_checked(path, Kind::Geometry).map_err(|source| SceneError::Read {
         file: file.clone(),
         source,
     })?;
@@ -95,7 +96,7 @@ pub fn load_obj_with(path: &Path, options: &ObjOptions) -> Result<ObjScene, Scen
     parse_obj_with(
         &text,
         &file,
-        |library| std::fs::read_to_string(dir.join(library)),
+        |library| read_to_string_checked(&dir.join(library), Kind::Materials),
         options,
     )
 }
@@ -345,6 +346,11 @@ pub(crate) fn scene_name(file_label: &str) -> String {
 
 /// What is wrong with a material's values, if anything: ρ must be in [0, 1) and L_e finite
 /// and ≥ 0 in every channel.
+/// The largest emitted radiance accepted, W·m⁻²·sr⁻¹: 10¹² is some 10⁵ times the sun's
+/// surface (2·10⁷), and far enough below the largest `f64` (1.8·10³⁰⁸) that the solvers'
+/// sums and squares of radiosities stay finite.
+pub const MAX_EMISSION: f64 = 1e12;
+
 pub(crate) fn material_problem(material: &Material) -> Option<String> {
     const CHANNELS: [&str; 3] = ["red", "green", "blue"];
     for (&r, channel) in material.reflectance.iter().zip(CHANNELS) {
@@ -364,6 +370,11 @@ pub(crate) fn material_problem(material: &Material) -> Option<String> {
         }
         if e < 0.0 {
             return Some(format!("emission {e} ({channel}) must be ≥ 0"));
+        }
+        if e > MAX_EMISSION {
+            return Some(format!(
+                "emission {e:e} ({channel}) is beyond {MAX_EMISSION:e} W·m⁻²·sr⁻¹"
+            ));
         }
     }
     None
@@ -504,6 +515,13 @@ impl MaterialLibrary {
                     if let Some(problem) = mtl_statement_problem(keyword, rest) {
                         return Err(syntax(problem));
                     }
+                    // A property before any `newmtl` belongs to no material: it would be
+                    // dropped silently.
+                    if lines_of.is_empty() && MTL_PROPERTIES.contains(&keyword) {
+                        return Err(syntax(format!(
+                            "'{keyword}' before any 'newmtl': it belongs to no material"
+                        )));
+                    }
                     if changes_the_look(keyword, rest) {
                         self.ignore(keyword, &at)?;
                     }
@@ -588,6 +606,10 @@ fn ignored_kind(keyword: &str) -> &'static str {
         _ => "texture map",
     }
 }
+/// MTL statements that set a property of the current material.
+const MTL_PROPERTIES: [&str; 12] = [
+    "Ka", "Kd", "Ks", "Ke", "Ns", "Ni", "d", "Tr", "Tf", "illum", "map_Kd", "map_Ka",
+];
 
 /// Why tobj would reject (or panic on) an MTL statement other than `newmtl`, if it would.
 /// `rest` is the line after the keyword, trimmed.
@@ -955,5 +977,7 @@ mod tests {
         assert!(material_problem(&m([-0.1, 0.5, 0.5], [0.0; 3])).is_some());
         assert!(material_problem(&m([0.5; 3], [0.0, -1.0, 0.0])).is_some());
         assert!(material_problem(&m([0.5; 3], [f64::INFINITY, 0.0, 0.0])).is_some());
+        assert!(material_problem(&m([0.5; 3], [1e308, 0.0, 0.0])).is_some());
+        assert!(material_problem(&m([0.5; 3], [MAX_EMISSION, 0.0, 0.0])).is_none());
     }
 }

@@ -23,7 +23,7 @@
 //! silently fall back to a default. Lengths are in metres.
 //! - `name`: the scene's name; default the file stem.
 //! - `materials`: `name` (unique), `reflectance` ρ per RGB channel in [0, 1), `emission`
-//!   L_e in W·m⁻²·sr⁻¹ per channel, finite and ≥ 0 (default 0; front side only),
+//!   L_e in W·m⁻²·sr⁻¹ per channel, in [0, 10¹²] (default 0; front side only),
 //!   `two_sided` (default false: both sides reflect, see [`Material::two_sided`]) and
 //!   `two_sided_emission` (default false: with `two_sided`, the back emits too). Values here
 //!   are exact: out-of-range values are errors, never clamped.
@@ -54,6 +54,7 @@ use crate::geometry::split_into_convex;
 use crate::io::error::{Location, SceneError};
 use crate::io::formats::{load_any_with, load_geometry, LoadOptions};
 use crate::io::obj::{material_problem, scene_name};
+use crate::io::open::{read_to_string_checked, Kind};
 use crate::scene::{Camera, Material, MaterialId, Origin, Scene, Surface};
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
@@ -190,7 +191,7 @@ pub fn load_scene_file(path: &Path) -> Result<LoadedScene, SceneError> {
 /// [`load_scene_file`] with reader options (passed on to included files).
 pub fn load_scene_file_with(path: &Path, options: &LoadOptions) -> Result<LoadedScene, SceneError> {
     let file = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|source| SceneError::Read {
+    let text = read_to_string_checked(path, Kind::Geometry).map_err(|source| SceneError::Read {
         file: file.clone(),
         source,
     })?;
@@ -250,7 +251,12 @@ pub fn parse_scene_file_with(
     let mut included_camera = None;
     for include in &parsed.include {
         let include_path = dir.join(include);
-        let (included, included_warnings) = load_geometry(&include_path, options)?;
+        let in_include = |source: SceneError| SceneError::Included {
+            file: file.clone(),
+            source: Box::new(source),
+        };
+        let (included, included_warnings) =
+            load_geometry(&include_path, options).map_err(in_include)?;
         warnings.extend(included_warnings);
         included_camera = included_camera.or(included.camera);
         scene.lights.extend(included.lights);
@@ -345,7 +351,7 @@ pub fn parse_scene_file_with(
 
 /// What is wrong with a camera, if anything: it must be finite, look somewhere, have an `up`
 /// not parallel to the view direction and a field of view in (0°, 180°).
-fn camera_problem(camera: &Camera) -> Option<String> {
+pub(crate) fn camera_problem(camera: &Camera) -> Option<String> {
     if !(camera.eye.is_finite() && camera.target.is_finite() && camera.up.is_finite()) {
         return Some("eye, target and up must be finite".to_owned());
     }

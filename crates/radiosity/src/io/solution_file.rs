@@ -3,6 +3,7 @@
 //!
 //! JSON with a format version; radiosity and irradiance in W·m⁻² per element.
 
+use crate::geometry::COORDINATE_LIMIT;
 use crate::mesh::{Element, Mesh, SurfaceData};
 use crate::scene::Camera;
 use crate::solve::Solution;
@@ -158,59 +159,183 @@ impl SolutionFile {
         })
     }
 
-    /// Reads and validates a file.
+    /// Reads and validates a file (a regular file of at most
+    /// [`Kind::Solution`](crate::io::open::Kind::Solution)'s cap).
     pub fn load(path: &Path) -> Result<Self, SolutionFileError> {
-        let text = std::fs::read_to_string(path).map_err(|source| SolutionFileError::Io {
+        let text = crate::io::open::read_to_string_checked(path, crate::io::open::Kind::Solution)
+            .map_err(|source| SolutionFileError::Io {
             path: path.to_path_buf(),
             source,
         })?;
+        Self::parse(&text, path)
+    }
+
+    /// Parses and validates solution-file JSON; `path` labels errors (it is not read).
+    ///
+    /// Everything a renderer trusts is checked, and an error names the key: indices in
+    /// range; vertices finite and within [`COORDINATE_LIMIT`]; each surface's reflectance
+    /// in [0, 1) and exitance finite and ≥ 0; radiosity and irradiance finite and ≥ 0; the
+    /// ambient term finite, ≥ 0 and no larger than the stored radiosity allows (unshot
+    /// radiosity is part of B, so ambient ≤ max B / (1 − ρ̄)); the camera usable.
+    pub fn parse(text: &str, path: &Path) -> Result<Self, SolutionFileError> {
+        let text = text.strip_prefix('\u{feff}').unwrap_or(text);
         let file: SolutionFile =
-            serde_json::from_str(&text).map_err(|source| SolutionFileError::Parse {
+            serde_json::from_str(text).map_err(|source| SolutionFileError::Parse {
                 path: path.to_path_buf(),
                 source,
             })?;
-        let invalid = |message: String| SolutionFileError::Invalid {
-            path: path.to_path_buf(),
-            message,
-        };
-        if file.format != "radiosity-solution" {
-            return Err(invalid(format!("unknown format '{}'", file.format)));
-        }
-        if file.version != FORMAT_VERSION {
-            return Err(invalid(format!(
-                "format version {} is not supported (expected {FORMAT_VERSION})",
-                file.version
-            )));
-        }
-        let n = file.elements.len();
-        if file.radiosity.len() != n || file.irradiance.len() != n {
-            return Err(invalid(format!(
-                "{n} elements but {} radiosity values",
-                file.radiosity.len()
-            )));
-        }
-        for (i, e) in file.elements.iter().enumerate() {
-            if e.corners.len() < 3 || e.corners.iter().any(|&c| c as usize >= file.vertices.len()) {
-                return Err(invalid(format!(
-                    "element {i} refers to a vertex that does not exist"
-                )));
-            }
-            if e.surface as usize >= file.surfaces.len() {
-                return Err(invalid(format!(
-                    "element {i} refers to surface {} that does not exist",
-                    e.surface
-                )));
-            }
-        }
-        let finite = file
-            .vertices
-            .iter()
-            .flatten()
-            .chain(file.radiosity.iter().flatten())
-            .all(|x| x.is_finite());
-        if !finite {
-            return Err(invalid("non-finite vertex or radiosity value".into()));
-        }
+        file.validate()
+            .map_err(|message| SolutionFileError::Invalid {
+                path: path.to_path_buf(),
+                message,
+            })?;
         Ok(file)
+    }
+
+    /// What is wrong with the file's contents, naming the key, if anything.
+    fn validate(&self) -> Result<(), String> {
+        const CHANNELS: [&str; 3] = ["red", "green", "blue"];
+        if self.format != "radiosity-solution" {
+            return Err(format!(
+                "format: unknown format '{}' (expected 'radiosity-solution')",
+                self.format
+            ));
+        }
+        if self.version != FORMAT_VERSION {
+            return Err(format!(
+                "version: format version {} is not supported (expected {FORMAT_VERSION})",
+                self.version
+            ));
+        }
+        let n = self.elements.len();
+        if n == 0 {
+            return Err("elements: the solution has no elements".into());
+        }
+        for (key, len) in [
+            ("radiosity", self.radiosity.len()),
+            ("irradiance", self.irradiance.len()),
+        ] {
+            if len != n {
+                return Err(format!("{key}: {len} values for {n} elements"));
+            }
+        }
+        for (i, v) in self.vertices.iter().enumerate() {
+            if let Some(x) = v
+                .iter()
+                .find(|x| !x.is_finite() || x.abs() > COORDINATE_LIMIT)
+            {
+                return Err(format!(
+                    "vertices[{i}]: coordinate {x} is not finite or beyond {COORDINATE_LIMIT:e} m"
+                ));
+            }
+        }
+        for (i, s) in self.surfaces.iter().enumerate() {
+            if s.object as usize >= self.objects.len() {
+                return Err(format!(
+                    "surfaces[{i}].object: object {} does not exist ({} objects)",
+                    s.object,
+                    self.objects.len()
+                ));
+            }
+            for (c, &r) in s.reflectance.iter().enumerate() {
+                if !(0.0..1.0).contains(&r) {
+                    return Err(format!(
+                        "surfaces[{i}].reflectance: {r} ({}) must be ≥ 0 and < 1",
+                        CHANNELS[c]
+                    ));
+                }
+            }
+            for (c, &e) in s.exitance.iter().enumerate() {
+                if !(e.is_finite() && e >= 0.0) {
+                    return Err(format!(
+                        "surfaces[{i}].exitance: {e} ({}) must be finite and ≥ 0",
+                        CHANNELS[c]
+                    ));
+                }
+            }
+        }
+        for (i, e) in self.elements.iter().enumerate() {
+            if e.corners.len() < 3 {
+                return Err(format!(
+                    "elements[{i}].corners: {} corners, at least 3 needed",
+                    e.corners.len()
+                ));
+            }
+            if let Some(&c) = e
+                .corners
+                .iter()
+                .find(|&&c| c as usize >= self.vertices.len())
+            {
+                return Err(format!(
+                    "elements[{i}].corners: vertex {c} does not exist ({} vertices)",
+                    self.vertices.len()
+                ));
+            }
+            if e.surface as usize >= self.surfaces.len() {
+                return Err(format!(
+                    "elements[{i}].surface: surface {} does not exist ({} surfaces)",
+                    e.surface,
+                    self.surfaces.len()
+                ));
+            }
+            let sound =
+                e.area.is_finite() && e.area >= 0.0 && e.centre.is_finite() && e.normal.is_finite();
+            if !sound {
+                return Err(format!(
+                    "elements[{i}]: area, centre and normal must be finite (area ≥ 0)"
+                ));
+            }
+        }
+        for (key, values) in [
+            ("radiosity", &self.radiosity),
+            ("irradiance", &self.irradiance),
+        ] {
+            for (i, v) in values.iter().enumerate() {
+                for (c, &x) in v.iter().enumerate() {
+                    if !(x.is_finite() && x >= 0.0) {
+                        return Err(format!(
+                            "{key}[{i}]: {x} W·m⁻² ({}) must be finite and ≥ 0",
+                            CHANNELS[c]
+                        ));
+                    }
+                }
+            }
+        }
+        // The ambient term is R · (mean unshot radiosity), R = 1 / (1 − ρ̄) with ρ̄ the
+        // area-weighted mean reflectance, and unshot radiosity never exceeds B.
+        let total_area: f64 = self.elements.iter().map(|e| e.area).sum();
+        for c in 0..3 {
+            let a = self.ambient[c];
+            if !(a.is_finite() && a >= 0.0) {
+                return Err(format!(
+                    "ambient: {a} W·m⁻² ({}) must be finite and ≥ 0",
+                    CHANNELS[c]
+                ));
+            }
+            let max_b = self.radiosity.iter().map(|b| b[c]).fold(0.0, f64::max);
+            let rho_avg = if total_area > 0.0 {
+                self.elements
+                    .iter()
+                    .map(|e| self.surfaces[e.surface as usize].reflectance[c] * e.area)
+                    .sum::<f64>()
+                    / total_area
+            } else {
+                0.0
+            };
+            let bound = max_b / (1.0 - rho_avg).max(1e-12);
+            if a > bound * (1.0 + 1e-9) + 1e-300 {
+                return Err(format!(
+                    "ambient: {a:e} W·m⁻² ({}) is more than the stored radiosity allows \
+                     (at most {bound:e}: max B / (1 − mean ρ))",
+                    CHANNELS[c]
+                ));
+            }
+        }
+        if let Some(camera) = self.camera {
+            if let Some(problem) = crate::io::scene_file::camera_problem(&Camera::from(camera)) {
+                return Err(format!("camera: {problem}"));
+            }
+        }
+        Ok(())
     }
 }

@@ -199,7 +199,8 @@ impl Mesh {
                         limit: MAX_ELEMENTS,
                     });
                 }
-                size_for_count(&polygons, options.elements)
+                let size = size_for_count(&polygons, options.elements);
+                within_budget(&polygons, size, options.patch_subdivision, options.elements)
             }
         };
         let estimate: f64 = polygons.iter().map(|p| estimate_elements(p, size)).sum();
@@ -607,6 +608,53 @@ fn size_for_count(polygons: &[&Polygon], count: usize) -> f64 {
     hi
 }
 
+/// The number of elements [`Mesh::mesh_surface`] makes of `polygons` at element size
+/// `size` with `sub` elements per patch edge.
+fn exact_count(polygons: &[&Polygon], size: f64, sub: u32) -> f64 {
+    let pieces = |length: f64| {
+        let (patches, per_patch) = split_count(length, size, sub);
+        f64::from(patches) * f64::from(per_patch)
+    };
+    polygons
+        .iter()
+        .map(|p| {
+            let v = p.vertices();
+            if v.len() == 4 {
+                let lu = v[0].distance(v[1]).max(v[3].distance(v[2]));
+                let lv = v[0].distance(v[3]).max(v[1].distance(v[2]));
+                pieces(lu) * pieces(lv)
+            } else {
+                pieces(triangle_level_length(p, size)).powi(2) * (v.len() - 2) as f64
+            }
+        })
+        .sum()
+}
+
+/// `size`, grown until the mesh has at most twice `count` elements.
+///
+/// [`size_for_count`] estimates from each polygon's own edges; a polygon whose fan
+/// triangles are slivers (one mistyped vertex makes a 400 m spike on a 1 m floor) is
+/// divided along its longest edge on both lattice directions, so the real count can be
+/// hundreds of times the budget. The guard only acts then (twice the budget leaves the
+/// estimate's ordinary rounding alone), so ordinary meshes do not change; it grows the
+/// size by 5 % steps (the count falls as 1/size², about 10 % a step) until the count is
+/// within the budget itself.
+fn within_budget(polygons: &[&Polygon], size: f64, sub: u32, count: usize) -> f64 {
+    let budget = count as f64;
+    if exact_count(polygons, size, sub) <= 2.0 * budget {
+        return size;
+    }
+    let mut size = size;
+    // 1.05^1500 ≈ 10³¹: far beyond any scene's extent over its smallest element.
+    for _ in 0..1500 {
+        size *= 1.05;
+        if exact_count(polygons, size, sub) <= budget {
+            break;
+        }
+    }
+    size
+}
+
 /// Shares vertices that are bit-identical within one surface.
 #[derive(Default)]
 struct Welder {
@@ -731,6 +779,48 @@ mod tests {
         };
         let m = Mesh::build(&s, &opts).unwrap();
         assert!((m.elements.len() as f64 - 400.0).abs() <= 40.0);
+    }
+
+    #[test]
+    fn a_sliver_cannot_defeat_the_element_budget() {
+        // One mistyped vertex (y = 400 for 0.4) turned a floor into a 400 m spike: its fan
+        // triangles are slivers, which used to get 24,337 elements for a budget of 200.
+        let s = scene_with(vec![
+            vec![
+                DVec3::new(0.0, 0.0, 0.0),
+                DVec3::new(1.0, 0.0, 0.0),
+                DVec3::new(0.2, 400.0, 0.0),
+            ],
+            vec![
+                DVec3::new(0.0, 0.0, 1.0),
+                DVec3::new(0.0, 1.0, 1.0),
+                DVec3::new(1.0, 1.0, 1.0),
+                DVec3::new(1.0, 0.0, 1.0),
+            ],
+        ]);
+        for sub in [1, 3] {
+            let opts = MeshOptions {
+                max_element_size: None,
+                elements: 200,
+                patch_subdivision: sub,
+            };
+            let m = Mesh::build(&s, &opts).unwrap();
+            // The guard lets ordinary rounding through up to twice the budget.
+            assert!(m.elements.len() <= 400, "{} elements", m.elements.len());
+            assert_eq!(
+                m.elements.len() as f64,
+                exact_count(
+                    &[&s.surfaces[0].polygon, &s.surfaces[1].polygon],
+                    within_budget(
+                        &[&s.surfaces[0].polygon, &s.surfaces[1].polygon],
+                        size_for_count(&[&s.surfaces[0].polygon, &s.surfaces[1].polygon], 200),
+                        sub,
+                        200
+                    ),
+                    sub
+                )
+            );
+        }
     }
 
     #[test]

@@ -189,10 +189,12 @@ impl Image {
     /// (half or uint channels are converted). Other channels (alpha, AOVs) are ignored.
     pub fn read_exr(path: &Path) -> Result<Image, ImageError> {
         use exr::prelude::*;
-        let bytes = std::fs::read(path).map_err(|source| ImageError::Io {
-            path: path.to_owned(),
-            source,
-        })?;
+        let bytes = crate::io::open::read_checked(path, crate::io::open::Kind::Geometry).map_err(
+            |source| ImageError::Io {
+                path: path.to_owned(),
+                source,
+            },
+        )?;
         let exr_err = |source| ImageError::Exr {
             path: path.to_owned(),
             source,
