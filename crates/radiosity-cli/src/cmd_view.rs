@@ -540,13 +540,23 @@ impl Observer for Watcher<'_> {
 mod tests {
     use super::*;
 
+    /// The solve flags as parsed from an empty command line.
+    fn default_solve_args() -> crate::args::SolveArgs {
+        #[derive(clap::Parser)]
+        struct Flags {
+            #[command(flatten)]
+            solve: crate::args::SolveArgs,
+        }
+        <Flags as clap::Parser>::parse_from(["radiosity"]).solve
+    }
+
     /// A live solve of a small Cornell box publishes the meshed scene, frames that brighten
     /// as light is shot, and ends converged with the solver's own irradiance.
     #[test]
     fn a_live_solve_publishes_frames_and_converges() {
         let state = Arc::new(ViewState::new());
         let server = Server::bind(state.clone(), ServerConfig::default()).unwrap();
-        let loaded = load_scene(None).unwrap();
+        let loaded = load_scene(None, &default_solve_args()).unwrap();
         let flags = radiosity::settings::Overrides {
             elements: Some(300),
             ..Default::default()
@@ -606,7 +616,7 @@ mod tests {
         let server = Server::bind(Arc::new(ViewState::new()), ServerConfig::default()).unwrap();
         let stop = server.shutdown_handle();
         stop.shutdown();
-        let loaded = load_scene(None).unwrap();
+        let loaded = load_scene(None, &default_solve_args()).unwrap();
         let settings = loaded
             .settings(&radiosity::settings::Overrides {
                 elements: Some(300),
