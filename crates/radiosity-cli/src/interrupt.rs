@@ -6,12 +6,37 @@
 //! ctrlc allows one handler per process; anything else that must happen on an interrupt
 //! belongs in this one.
 
+use std::sync::Mutex;
+
+/// What a command asks to happen on an interrupt instead of exiting: returns true when it has
+/// taken the signal (the command winds down by itself), false to exit as usual.
+type Hook = Box<dyn Fn() -> bool + Send>;
+
+static HOOK: Mutex<Option<Hook>> = Mutex::new(None);
+
 /// Installs the handler (once; a failure to install is not fatal: the program just keeps
 /// the default behaviour of dying on the signal).
 pub fn remove_temporaries_on_signal() {
     let _ = ctrlc::set_handler(|| {
+        let taken = HOOK
+            .lock()
+            .ok()
+            .and_then(|hook| hook.as_ref().map(|f| f()))
+            .unwrap_or(false);
+        if taken {
+            return;
+        }
         radiosity::io::atomic::remove_temporaries();
         eprintln!("\ninterrupted");
         std::process::exit(130);
     });
+}
+
+/// Lets a long-running command (the live viewer) take the interrupt itself: `hook` runs on
+/// each Ctrl-C or SIGTERM and returns whether it took it; when it does not, the handler
+/// cleans up and exits with status 130.
+pub fn on_interrupt(hook: impl Fn() -> bool + Send + 'static) {
+    if let Ok(mut slot) = HOOK.lock() {
+        *slot = Some(Box::new(hook));
+    }
 }

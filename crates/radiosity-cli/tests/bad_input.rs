@@ -1071,6 +1071,20 @@ fn check(c: &Case) -> Result<(), String> {
     }
 }
 
+/// Defects the readers repair by default, with a warning naming file and line (zero-area
+/// faces skipped, ρ ≥ 1 clamped: what real exported files need, see `formats_cli.rs`); under
+/// `--strict`, which these cases pass, they are errors like every other case here.
+const REPAIRED_UNLESS_STRICT: [&str; 8] = [
+    "obj/two_vertex_face",
+    "obj/one_vertex_face",
+    "obj/empty_face",
+    "obj/repeated",
+    "obj/collinear",
+    "obj/bow_tie",
+    "mtl/rho_high",
+    "mtl/rho_one",
+];
+
 #[test]
 fn every_bad_input_fails_cleanly() {
     let valid = valid_solution();
@@ -1085,6 +1099,9 @@ fn every_bad_input_fails_cleanly() {
     ] {
         for mut c in group {
             c.name = format!("{kind}/{}", c.name);
+            if REPAIRED_UNLESS_STRICT.contains(&c.name.as_str()) {
+                c.args.push("--strict".into());
+            }
             cases.push(c);
         }
     }

@@ -43,15 +43,17 @@ use std::process::{Command, Stdio};
 /// server down (and any solver loop that polls [`ShutdownHandle::is_shutdown`] stops); a
 /// second one exits at once with status 130.
 ///
-/// A process has one such handler: call this once, from the command, not from tests.
+/// The process's one signal handler is `crate::interrupt`'s; this hooks into it. Call it
+/// once, from the command, not from tests.
 pub fn shutdown_on_signal(handle: ShutdownHandle) -> Result<(), ViewError> {
-    ctrlc::set_handler(move || {
+    crate::interrupt::on_interrupt(move || {
         if handle.is_shutdown() {
-            std::process::exit(130);
+            return false;
         }
         handle.shutdown();
-    })
-    .map_err(|e| ViewError::Signal(e.to_string()))
+        true
+    });
+    Ok(())
 }
 
 /// Opens `url` in the desktop's browser (`xdg-open`, macOS `open`, Windows `start`) without

@@ -78,9 +78,6 @@ pub enum ViewError {
         /// The operating system's error.
         source: std::io::Error,
     },
-    /// The interrupt (Ctrl-C / SIGTERM) handler could not be installed.
-    #[error("cannot install the Ctrl-C handler: {0}")]
-    Signal(String),
     /// The browser could not be started.
     #[error("cannot open a browser at {url}: {source}")]
     Browser {
