@@ -43,6 +43,7 @@ pub fn point_to_polygon(x: DVec3, n: DVec3, vertices: &[DVec3], polygon_normal: 
 }
 
 /// The contour sum for a polygon already inside the hemisphere above `x`: n · Γ.
+#[inline]
 pub(crate) fn contour_sum(x: DVec3, n: DVec3, vertices: &[DVec3]) -> f64 {
     lambert_vector(x, vertices).dot(n).clamp(0.0, 1.0)
 }
@@ -51,6 +52,7 @@ pub(crate) fn contour_sum(x: DVec3, n: DVec3, vertices: &[DVec3]) -> f64 {
 /// every normal n whose hemisphere holds all of q (Baum, Rushmeier & Winget 1989, eq. 1):
 /// Γ = −(1/2π) Σ_k γ_k · (r_k × r_{k+1})/|r_k × r_{k+1}|, r_k = v_k − x. Seen from the front
 /// the polygon winds clockwise about its normal, hence the sign.
+#[inline]
 pub fn lambert_vector(x: DVec3, vertices: &[DVec3]) -> DVec3 {
     let count = vertices.len();
     let mut sum = DVec3::ZERO;
