@@ -13,27 +13,12 @@ mod headless;
 mod viewer;
 
 use serde_json::Value;
-use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::{Duration, Instant};
 
 fn chromium() -> Option<PathBuf> {
-    let found = headless::find_chromium();
-    if found.is_none() {
-        assert!(
-            std::env::var_os("RADIOSITY_REQUIRE_BROWSER").is_none(),
-            "RADIOSITY_REQUIRE_BROWSER is set but no chromium was found (set CHROMIUM)"
-        );
-        // Straight to stderr, past the test harness's capture, so that a skip is seen.
-        let _ = writeln!(
-            std::io::stderr(),
-            "{}: skipped, no chromium found (install Debian's chromium or set CHROMIUM; \
-             RADIOSITY_REQUIRE_BROWSER=1 makes this a failure)",
-            module_path!()
-        );
-    }
-    found
+    headless::chromium_or_skip(module_path!())
 }
 
 /// Image size: the reference regions below are defined on a 256 × 256 image.

@@ -11,27 +11,12 @@ mod headless;
 
 use super::test_scene::{self, box_mesh, uniform_frame, CAMERA};
 use super::*;
-use std::io::Write;
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Duration;
 
 fn chromium() -> Option<PathBuf> {
-    let found = headless::find_chromium();
-    if found.is_none() {
-        assert!(
-            std::env::var_os("RADIOSITY_REQUIRE_BROWSER").is_none(),
-            "RADIOSITY_REQUIRE_BROWSER is set but no chromium was found"
-        );
-        // Straight to stderr, past the test harness's capture, so that a skip is seen.
-        let _ = writeln!(
-            std::io::stderr(),
-            "{}: skipped, no chromium found (install Debian's chromium or set CHROMIUM; \
-             RADIOSITY_REQUIRE_BROWSER=1 makes this a failure)",
-            module_path!()
-        );
-    }
-    found
+    headless::chromium_or_skip(module_path!())
 }
 
 fn screenshot_path(name: &str) -> (PathBuf, Option<tempfile::TempDir>) {

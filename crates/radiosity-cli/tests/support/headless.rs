@@ -77,6 +77,25 @@ pub fn find_chromium() -> Option<PathBuf> {
         .find(|p| p.is_file())
 }
 
+/// [`find_chromium`] for a test in `test` (its module path): when none is found, a note
+/// on stderr (past the harness's capture, so that a skip is seen) and `None`; a failure
+/// instead when `RADIOSITY_REQUIRE_BROWSER` is set (CI, which installs Debian's chromium).
+pub fn chromium_or_skip(test: &str) -> Option<PathBuf> {
+    let found = find_chromium();
+    if found.is_none() {
+        assert!(
+            std::env::var_os("RADIOSITY_REQUIRE_BROWSER").is_none(),
+            "RADIOSITY_REQUIRE_BROWSER is set but no chromium was found (set CHROMIUM)"
+        );
+        let _ = writeln!(
+            std::io::stderr(),
+            "{test}: skipped, no chromium found (install Debian's chromium or set CHROMIUM; \
+             RADIOSITY_REQUIRE_BROWSER=1 makes this a failure)"
+        );
+    }
+    found
+}
+
 /// Opens `url` at `width` × `height`, waits (at most `budget`) until the page's
 /// `data-settled` is `true` (the solve has ended and its last frame is drawn), and writes a
 /// PNG screenshot to `png` (through a temporary name, renamed when complete).
