@@ -28,6 +28,7 @@
 
 use crate::font::register_font;
 use radiosity::accel::Visibility;
+use radiosity::coupling::closure::Enclosure;
 use radiosity::coupling::{Coupling, Dense, NearField};
 use radiosity::formfactor::{engine, FormFactorMethod};
 use radiosity::mesh::Mesh;
@@ -282,9 +283,10 @@ pub fn compare(
     let direct_fits = solver_memory(SolverKind::Direct, n, m) <= options.memory_limit as u128;
 
     let visibility = Visibility::new(mesh);
+    let enclosure = Enclosure::probe(mesh, &visibility);
     let near = NearField::decide(mesh);
     let engine = engine(method, mesh, &visibility, &near.per_element);
-    let coupling = Dense::compute(mesh, engine.as_ref(), &near, progress);
+    let coupling = Dense::compute(mesh, engine.as_ref(), &near, enclosure, progress);
     let form_factor_seconds = coupling.form_factor_seconds();
     let start_b = radiosity::solve::exitance(mesh);
     check_finite(&start_b, Method::Jacobi)?;

@@ -18,6 +18,7 @@
 //! See also: `radiosity progressive` (the command that writes the frames and the sheet).
 
 use radiosity::accel::Visibility;
+use radiosity::coupling::closure::Enclosure;
 use radiosity::coupling::{Columns, Coupling, NearField};
 use radiosity::display::Shading;
 use radiosity::formfactor::engine;
@@ -202,6 +203,8 @@ pub fn run(
     let mut mesh = Mesh::build(scene, &mesh_options).map_err(PipelineError::from)?;
     // Visibility depends only on the surface polygons, which refinement keeps.
     let visibility = Visibility::new(&mesh);
+    // Refinement splits elements but keeps the surfaces: the enclosure stays what it is.
+    let enclosure = Enclosure::probe(&mesh, &visibility);
     let mut near = NearField::decide(&mesh);
     // Refinement budget when none is given: the element count of the uniform mesh.
     let refine = options.adaptive.map(|r| RefineOptions {
@@ -217,7 +220,7 @@ pub fn run(
     let mut shown = 0usize;
     for (k, &requested) in options.frames.iter().enumerate() {
         let ff = engine(settings.form_factor, &mesh, &visibility, &near.per_element);
-        let coupling = Columns::new(&mesh, ff.as_ref(), &near, cache);
+        let coupling = Columns::new(&mesh, ff.as_ref(), &near, enclosure, cache);
         let state = state.get_or_insert_with(|| Progressive::new(&coupling, &settings.solve));
         let mut watch = |step: &Step<'_>| {
             if step.index > shown {
@@ -280,8 +283,13 @@ pub fn run(
                             &visibility,
                             &refined_near.per_element,
                         );
-                        let refined_coupling =
-                            Columns::new(&refined, refined_ff.as_ref(), &refined_near, cache);
+                        let refined_coupling = Columns::new(
+                            &refined,
+                            refined_ff.as_ref(),
+                            &refined_near,
+                            enclosure,
+                            cache,
+                        );
                         state.refine(&mesh, &refined_coupling);
                     }
                     drop(coupling);
@@ -295,7 +303,7 @@ pub fn run(
     progress.finish();
     let mut solution = {
         let ff = engine(settings.form_factor, &mesh, &visibility, &near.per_element);
-        let coupling = Columns::new(&mesh, ff.as_ref(), &near, cache);
+        let coupling = Columns::new(&mesh, ff.as_ref(), &near, enclosure, cache);
         state
             .as_ref()
             .map(|s| s.solution(&coupling))

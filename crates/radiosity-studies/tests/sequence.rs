@@ -6,6 +6,7 @@
 
 use radiosity::accel::Visibility;
 use radiosity::cornell::{cornell_box, cornell_camera};
+use radiosity::coupling::closure::Enclosure;
 use radiosity::coupling::{Columns, NearField};
 use radiosity::display::Shading;
 use radiosity::formfactor::engine;
@@ -335,6 +336,7 @@ fn measure_overshoot_benefit() {
     let mesh = Mesh::build(&scene, &MeshOptions::default()).unwrap();
     let visibility = Visibility::new(&mesh);
     let near = NearField::decide(&mesh);
+    let enclosure = Enclosure::probe(&mesh, &visibility);
     let ff = engine(
         radiosity::formfactor::FormFactorMethod::default(),
         &mesh,
@@ -353,7 +355,7 @@ fn measure_overshoot_benefit() {
                 memory_limit,
                 ..Default::default()
             };
-            let coupling = Columns::new(&mesh, ff.as_ref(), &near, memory_limit / 2);
+            let coupling = Columns::new(&mesh, ff.as_ref(), &near, enclosure, memory_limit / 2);
             let mut state = progressive::Progressive::new(&coupling, &options);
             let start = std::time::Instant::now();
             for target in [1e-2, 1e-3] {

@@ -6,6 +6,7 @@
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use radiosity::cornell::cornell_box;
+use radiosity::coupling::closure::Enclosure;
 use radiosity::coupling::{Dense, NearField};
 use radiosity::display::Shading;
 use radiosity::formfactor::{engine, FormFactorMethod, Visibility};
@@ -35,12 +36,13 @@ fn form_factors(c: &mut Criterion) {
         let mesh = Mesh::build(&scene, &settings(n).mesh).unwrap();
         let vis = Visibility::new(&mesh);
         let near = NearField::decide(&mesh);
+        let enclosure = Enclosure::probe(&mesh, &vis);
         let ff = engine(FormFactorMethod::Raycast, &mesh, &vis, &near.per_element);
         g.throughput(Throughput::Elements(
             (mesh.len() * mesh.patches.len()) as u64,
         ));
         g.bench_with_input(BenchmarkId::from_parameter(mesh.len()), &mesh, |b, mesh| {
-            b.iter(|| Dense::compute(mesh, ff.as_ref(), &near, &NoProgress))
+            b.iter(|| Dense::compute(mesh, ff.as_ref(), &near, enclosure, &NoProgress))
         });
     }
     g.finish();

@@ -10,6 +10,7 @@ use std::time::Duration;
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use radiosity::cornell::cornell_box;
+use radiosity::coupling::closure::Enclosure;
 use radiosity::coupling::{Columns, NearField};
 use radiosity::formfactor::{engine, FormFactorMethod, Visibility};
 use radiosity::mesh::{Mesh, MeshOptions};
@@ -37,6 +38,7 @@ fn shots_per_second(c: &mut Criterion) {
         .unwrap();
         let visibility = Visibility::new(&mesh);
         let near = NearField::decide(&mesh);
+        let enclosure = Enclosure::probe(&mesh, &visibility);
         let ff = engine(
             FormFactorMethod::Raycast,
             &mesh,
@@ -44,7 +46,7 @@ fn shots_per_second(c: &mut Criterion) {
             &near.per_element,
         );
         // No memory for cached columns: every shot computes its column.
-        let coupling = Columns::new(&mesh, ff.as_ref(), &near, 0);
+        let coupling = Columns::new(&mesh, ff.as_ref(), &near, enclosure, 0);
         let options = SolveOptions::default();
         // One run carried on across iterations, so the shots measured are a stretch of a
         // real solution (the light first, then the brightest surfaces), not the light's

@@ -3,6 +3,7 @@
 //! through here.
 
 use crate::accel::Visibility;
+use crate::coupling::closure::Enclosure;
 use crate::coupling::hierarchical::{HierarchicalError, HierarchicalOptions};
 use crate::coupling::{Columns, Coupling, Dense, NearField};
 use crate::display::{DisplayMesh, Shading};
@@ -141,6 +142,7 @@ pub fn solve_mesh(
     check_memory(&settings.solve, mesh.elements.len(), mesh.patches.len())?;
     let visibility = Visibility::new(mesh);
     let near = NearField::decide(mesh);
+    let enclosure = Enclosure::probe(mesh, &visibility);
     let engine = engine(settings.form_factor, mesh, &visibility, &near.per_element);
     let solution = match settings.solve.solver {
         SolverKind::Progressive => {
@@ -148,12 +150,13 @@ pub fn solve_mesh(
                 mesh,
                 engine.as_ref(),
                 &near,
+                enclosure,
                 settings.solve.memory_limit / 2,
             );
             solve(&coupling, &settings.solve, observer)?
         }
         _ => {
-            let coupling = Dense::compute(mesh, engine.as_ref(), &near, progress);
+            let coupling = Dense::compute(mesh, engine.as_ref(), &near, enclosure, progress);
             solve(&coupling as &dyn Coupling, &settings.solve, observer)?
         }
     };

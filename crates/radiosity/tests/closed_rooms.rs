@@ -61,6 +61,11 @@ fn scene(json: String) -> Scene {
 
 /// The 4 m cube, ρ = `rho`, each face cut 3 × 3 with the centre cell emitting 100 W.
 fn cube_with_face_centre_emitters(rho: f64) -> Scene {
+    furnished(rho, &[])
+}
+
+/// [`cube_with_face_centre_emitters`] with `extra` surfaces (material "white") inside.
+fn furnished(rho: f64, extra: &[String]) -> Scene {
     let cell = 4.0 / 3.0;
     let radiance = 100.0 / (cell * cell) / std::f64::consts::PI;
     let mut surfaces = Vec::new();
@@ -79,6 +84,7 @@ fn cube_with_face_centre_emitters(rho: f64) -> Scene {
             }
         }
     }
+    surfaces.extend_from_slice(extra);
     scene(format!(
         r#"{{ "materials": [
             {{ "name": "white", "reflectance": [{rho}, {rho}, {rho}] }},
@@ -95,24 +101,29 @@ fn nothing_escapes_a_closed_cube_and_every_face_has_the_closed_form_mean() {
     let scene = cube_with_face_centre_emitters(rho);
     let (power, area) = (600.0, 6.0 * 16.0);
     let expected = power / (area * (1.0 - rho)); // 62.5 W·m⁻²
-                                                 // The exact polygon-to-polygon form factor, so that the room is closed to rounding
-                                                 // (the point-receiver methods, `raycast` and `analytic-point`, integrate each receiver
-                                                 // by quadrature: their rows sum to 1 but reciprocity, hence the balance, holds only to
-                                                 // their quadrature error, +0.2 to +0.5 % on this coarse mesh). The two-level couplings
-                                                 // of the iterative solvers are where the leak was; the direct solver is the control.
-    for (solver, method, elements) in [
-        (SolverKind::Direct, FormFactorMethod::AnalyticPolygon, 1200),
-        (
-            SolverKind::GaussSeidel,
-            FormFactorMethod::AnalyticPolygon,
-            1200,
-        ),
-        (
-            SolverKind::Progressive,
-            FormFactorMethod::AnalyticPolygon,
-            1200,
-        ),
+                                                 // Every solver with a two-level coupling, with the exact polygon-to-polygon form factor
+                                                 // and with the point-receiver methods (`raycast`, the default, and `analytic-point`),
+                                                 // whose rows are closed at every quadrature point but whose column sums (reciprocity)
+                                                 // hold only to the receivers' quadrature error: before the closure balancing
+                                                 // (`coupling::closure`) they made +0.4 % (raycast) and +0.5 % (analytic-point) of the
+                                                 // power on this mesh. The hemi-cube is closed by construction (every pixel sees a
+                                                 // surface) but its aliasing breaks the cube's symmetry, so it is held to the balance only.
+    let mut cases = Vec::new();
+    for solver in [
+        SolverKind::Direct,
+        SolverKind::GaussSeidel,
+        SolverKind::Progressive,
     ] {
+        for method in [
+            FormFactorMethod::AnalyticPolygon,
+            FormFactorMethod::Raycast,
+            FormFactorMethod::AnalyticPoint,
+            FormFactorMethod::Hemicube,
+        ] {
+            cases.push((solver, method, 1200));
+        }
+    }
+    for (solver, method, elements) in cases {
         let settings = SolveSettings {
             mesh: MeshOptions {
                 elements,
@@ -142,7 +153,10 @@ fn nothing_escapes_a_closed_cube_and_every_face_has_the_closed_form_mean() {
             t.escaped_power[0]
         );
         // A balance error ε becomes ε / (1 − ρ) = 10 ε on every face: 1e-4 at most, against
-        // the old −0.7 %; 1e-4 relative.
+        // the old −0.7 %; 1e-4 relative. (The hemi-cube: see above.)
+        if method == FormFactorMethod::Hemicube {
+            continue;
+        }
         for o in &report.objects {
             let rel = (o.irradiance[0] - expected) / expected;
             assert!(
@@ -153,6 +167,73 @@ fn nothing_escapes_a_closed_cube_and_every_face_has_the_closed_form_mean() {
                 100.0 * rel
             );
         }
+    }
+}
+
+/// The six outward faces of a box from `lo` to `hi`, as scene-file surfaces of `object`.
+fn box_surfaces(object: &str, lo: [f64; 3], hi: [f64; 3]) -> Vec<String> {
+    let d = [hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]];
+    let (x, y, z) = ([d[0], 0., 0.], [0., d[1], 0.], [0., 0., d[2]]);
+    let at = |dx: f64, dy: f64, dz: f64| [lo[0] + dx, lo[1] + dy, lo[2] + dz];
+    [
+        (at(0., 0., 0.), y, x),   // bottom, −z
+        (at(0., 0., d[2]), x, y), // top, +z
+        (at(0., 0., 0.), x, z),   // −y
+        (at(0., d[1], 0.), z, x), // +y
+        (at(0., 0., 0.), z, y),   // −x
+        (at(d[0], 0., 0.), y, z), // +x
+    ]
+    .iter()
+    .map(|(o, u, v)| {
+        format!(
+            r#"{{ "object": "{object}", "material": "white", "vertices": {} }}"#,
+            quad(*o, *u, *v)
+        )
+    })
+    .collect()
+}
+
+#[test]
+fn nothing_escapes_a_furnished_closed_room() {
+    // The cube of the previous test with a box floating in it and a box standing on the
+    // floor (clear of the floor's lamp). The boxes occlude: a receiver point sees a box and,
+    // in part, the wall behind it, and the visibility estimate makes row sums drift from 1
+    // (0.976 to 1.025 seen) — the room gained 3.4 W of 600 W (−0.56 % "escaped") with the
+    // default `raycast` before the closure balancing. The enclosure probe finds no opening,
+    // so every row is held to 1 and every column to its patch's area: nothing escapes but
+    // the f32 rounding of the stored factors (1e-4 of the power allows for 1e-6 relative
+    // per factor across ~10⁴ stored factors' worth of accumulation, far below the old gain).
+    let rho = 0.9;
+    let mut extra = box_surfaces("floating", [1.0, 1.2, 1.5], [2.2, 2.0, 2.3]);
+    extra.extend(box_surfaces("on_floor", [2.7, 0.3, 0.0], [3.7, 1.2, 0.9]));
+    let scene = furnished(rho, &extra);
+    let power = 600.0;
+    for solver in [
+        SolverKind::Direct,
+        SolverKind::GaussSeidel,
+        SolverKind::Progressive,
+    ] {
+        let settings = SolveSettings {
+            mesh: MeshOptions {
+                elements: 2000,
+                ..MeshOptions::default()
+            },
+            solve: SolveOptions {
+                solver,
+                tolerance: 1e-7,
+                ..SolveOptions::default()
+            },
+            ..SolveSettings::default()
+        };
+        let solved = solve_scene(&scene, &settings, &NoProgress).unwrap();
+        let report = Report::new("room", &solved.mesh, &solved.solution, "raycast");
+        let t = &report.totals;
+        assert!((t.emitted_power[0] - power).abs() < 1e-9 * power);
+        assert!(
+            t.escaped_power[0].abs() < 1e-4 * power,
+            "{solver}: {} W of {power} W escaped",
+            t.escaped_power[0]
+        );
     }
 }
 

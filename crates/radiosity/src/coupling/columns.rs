@@ -10,6 +10,7 @@
 //! leave of each element's power), as in [`super::Dense`]; a patch's weights come from its
 //! near links, computed with its first column (or, for gathering, on their own) and kept.
 
+use super::closure::{column_scale, Enclosure};
 use super::{far_weights, Coupling, NearField};
 use crate::formfactor::Engine;
 use crate::mesh::Mesh;
@@ -48,26 +49,34 @@ pub struct Columns<'a> {
     mesh: &'a Mesh,
     engine: &'a dyn Engine,
     near: &'a NearField,
+    /// Whether the scene is closed ([`Enclosure::probe`]): what the closure of a patch is.
+    enclosure: Enclosure,
     /// Far weights of each patch's elements, in element order ([`super::far_weights`]).
     far_weight: Vec<OnceLock<Vec<f64>>>,
+    /// Closure R_p of each patch ([`Self::closure`]), computed with its first column.
+    closure: Vec<OnceLock<f64>>,
     cache: Mutex<Cache>,
     cache_limit: usize,
 }
 
 impl<'a> Columns<'a> {
     /// A coupling over `mesh` whose columns come from `engine`, linking near pairs
-    /// element by element, caching up to `cache_limit` bytes of columns.
+    /// element by element, each column balanced for `enclosure` ([`super::closure`]),
+    /// caching up to `cache_limit` bytes of columns.
     pub fn new(
         mesh: &'a Mesh,
         engine: &'a dyn Engine,
         near: &'a NearField,
+        enclosure: Enclosure,
         cache_limit: u64,
     ) -> Self {
         Self {
             mesh,
             engine,
             near,
+            enclosure,
             far_weight: (0..mesh.patches.len()).map(|_| OnceLock::new()).collect(),
+            closure: (0..mesh.patches.len()).map(|_| OnceLock::new()).collect(),
             cache: Mutex::new(Cache {
                 columns: HashMap::new(),
                 bytes: 0,
@@ -83,18 +92,68 @@ impl<'a> Columns<'a> {
         // The whole column first (a method may compute columns faster than pairs), then
         // the near receivers are resolved element by element.
         self.engine.column(p, &mut far);
-        if receivers.is_empty() {
-            return Column {
-                far,
-                near: Vec::new(),
-            };
-        }
         for &e in receivers {
             far[e as usize] = 0.0;
         }
-        let near = self.near_rows(p);
-        self.far_weight[p].get_or_init(|| self.weights_from(p, &near));
+        let mut near = if receivers.is_empty() {
+            Vec::new()
+        } else {
+            self.near_rows(p)
+        };
+        // The power the column delivers per unit radiosity, brought to what reciprocity
+        // says (`super::closure`): A_p times the closure of the patch's central element.
+        let area = |e: u32| self.mesh.elements[e as usize].area;
+        let delivered: f64 = far
+            .iter()
+            .enumerate()
+            .map(|(e, &f)| area(e as u32) * f as f64)
+            .sum::<f64>()
+            + near
+                .iter()
+                .map(|(e, row)| area(*e) * row.iter().map(|&f| f as f64).sum::<f64>())
+                .sum::<f64>();
+        let patch = &self.mesh.patches[p];
+        let target = self.mesh.patch_area(patch) * self.closure(p);
+        let scale = column_scale(delivered, target);
+        if scale != 1.0 {
+            for f in far.iter_mut() {
+                *f = (*f as f64 * scale) as f32;
+            }
+            for (_, row) in near.iter_mut() {
+                for f in row.iter_mut() {
+                    *f = (*f as f64 * scale) as f32;
+                }
+            }
+        }
+        if !near.is_empty() {
+            self.far_weight[p].get_or_init(|| self.weights_from(p, &near));
+        }
         Column { far, near }
+    }
+
+    /// R_p: the fraction of the hemisphere that sees any surface; 1 in a closed scene, else
+    /// Σ_q F_{e→q} (at most 1) of the element of patch `p` nearest its centroid (one row,
+    /// computed once per patch).
+    fn closure(&self, p: usize) -> f64 {
+        if self.enclosure == Enclosure::Closed {
+            return 1.0;
+        }
+        *self.closure[p].get_or_init(|| {
+            let patch = &self.mesh.patches[p];
+            let centre = patch.polygon.centroid();
+            let central = patch
+                .elements
+                .clone()
+                .min_by(|&a, &b| {
+                    let d = |e: u32| self.mesh.elements[e as usize].centre.distance(centre);
+                    d(a).total_cmp(&d(b))
+                })
+                .unwrap_or(patch.elements.start);
+            let mut row = vec![0.0f32; self.mesh.patches.len()];
+            self.engine.row(central as usize, &mut row);
+            self.enclosure
+                .row_target(row.iter().map(|&f| f as f64).sum())
+        })
     }
 
     /// F_{e→s} from every near receiver e of patch `p` to each of its elements s.

@@ -10,8 +10,11 @@
 //! The far factors are a dense row-major matrix of f32 (zero where the pair is near), the
 //! near links a sparse list per element. The mean far receivers see, B̄_q, weighs each
 //! element by the share of its power the near receivers leave (see [`super::far_weights`]),
-//! so that the coupling conserves energy whatever the radiosity does across a patch.
+//! so that the coupling conserves energy whatever the radiosity does across a patch. The
+//! factors are balanced once computed ([`super::closure::balance_dense`]): rows keep their
+//! sums, and each patch's column delivers the power reciprocity says it must.
 
+use super::closure::Enclosure;
 use super::{far_means, far_weights, weighted_mean, Coupling, NearField};
 use crate::formfactor::Engine;
 use crate::mesh::Mesh;
@@ -42,18 +45,20 @@ impl<'a> Dense<'a> {
         elements as u128 * patches as u128 * 4
     }
 
-    /// Computes every row in parallel with `engine`, linking near pairs element by element.
+    /// Computes every row in parallel with `engine`, linking near pairs element by element,
+    /// then balances rows and columns for `enclosure` ([`super::closure`]).
     pub fn compute(
         mesh: &'a Mesh,
         engine: &dyn Engine,
         near_field: &NearField,
+        enclosure: Enclosure,
         progress: &dyn Progress,
     ) -> Self {
         let started = Instant::now();
         let (n, m) = (mesh.elements.len(), mesh.patches.len());
         let mut data = vec![0.0f32; n * m];
         progress.start("form factors", n as u64);
-        let near: Vec<Vec<(u32, f32)>> = data
+        let mut near: Vec<Vec<(u32, f32)>> = data
             .par_chunks_mut(m.max(1))
             .enumerate()
             .map(|(e, row)| {
@@ -76,6 +81,8 @@ impl<'a> Dense<'a> {
             })
             .collect();
         progress.finish();
+        // Rows keep their closure, columns get the power reciprocity says they deliver.
+        super::closure::balance_dense(mesh, enclosure, m, &mut data, &mut near);
         // Σ_{near e} A_e F_{e→s} per source element s.
         let mut taken = vec![0.0; n];
         for (e, links) in near.iter().enumerate() {

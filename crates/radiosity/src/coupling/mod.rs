@@ -20,6 +20,7 @@
 //! Which pairs link element to patch and which element to element is decided by one oracle,
 //! [`NearField`], in one place.
 
+pub mod closure;
 pub mod columns;
 pub mod dense;
 pub mod hierarchical;
