@@ -88,12 +88,12 @@ impl Progressive {
         let mesh = coupling.mesh();
         (0..coupling.sources())
             .map(|p| {
-                coupling
-                    .source_elements(p)
-                    .map(|e| {
-                        let u = self.unshot[e as usize];
-                        (u[0].abs() + u[1].abs() + u[2].abs()) * mesh.elements[e as usize].area
-                    })
+                let r = coupling.source_elements(p);
+                let r = r.start as usize..r.end as usize;
+                self.unshot[r.clone()]
+                    .iter()
+                    .zip(&mesh.elements[r])
+                    .map(|(u, e)| (u[0].abs() + u[1].abs() + u[2].abs()) * e.area)
                     .sum()
             })
             .collect()
@@ -185,15 +185,17 @@ impl Progressive {
             unshot,
             ..
         } = self;
+        // Called once per receiving element per shot: index each array once.
         coupling.shoot(p, &shot, &mut |e, dh| {
             let el = &mesh.elements[e];
             let rho = mesh.reflectance(el);
+            let (h, b, u) = (&mut irradiance[e], &mut radiosity[e], &mut unshot[e]);
             for c in 0..3 {
                 let db = rho[c] * dh[c];
                 landed[c] += dh[c] * el.area;
-                irradiance[e][c] += dh[c];
-                radiosity[e][c] += db;
-                unshot[e][c] += db;
+                h[c] += dh[c];
+                b[c] += db;
+                u[c] += db;
             }
         });
         for c in 0..3 {
