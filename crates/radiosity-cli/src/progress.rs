@@ -226,7 +226,13 @@ impl Observer for &Bars {
 ///    light never shoots).
 ///
 /// Measured on the built-in Cornell box, `solve --solver progressive --elements 40000`
-/// (43,542 elements, 4,838 patches, 34,110 shots): see the README's progress section.
+/// (43,542 elements, 4,838 patches, 34,110 shots, 325 s of solver time on 2 shared cores),
+/// with `RADIOSITY_PROGRESS_LOG`: after the first 10 % the ETA stayed within 0.66–1.71× of
+/// the time actually left at every shot (times floored at the bar's 0.1 s); with 16,000
+/// elements (14,337 shots, 69 s) within 0.40–2.44×. Before, aiming at the unshot fraction
+/// 10⁻³, it read 0 s for the last 6 % (16 s) of the 40k solve; with the target fixed but the
+/// old cost model (a share of expensive repeats once every patch had shot, which noise on a
+/// busy machine inflated) it read up to 10× high near the end.
 struct ShotEta {
     tolerance: f64,
     patches: usize,
@@ -347,6 +353,10 @@ mod tests {
         let mut steps = vec![(StepKind::Start, 0, 0.0, 1.0)];
         let (mut t, mut ln_r, mut k, mut shot_patches) = (0.0, 0.0, 0, 0);
         while !(k % 16 == 0 && ln_r <= tolerance.ln()) {
+            assert!(
+                k < 1_000_000,
+                "the synthetic solve must reach its tolerance"
+            );
             let due = (patches as f64 * (1.0 - (-((k + 1) as f64) / kappa).exp())) as usize + 1;
             let first = due > shot_patches && shot_patches < patches;
             shot_patches += usize::from(first);
@@ -386,9 +396,10 @@ mod tests {
 
     #[test]
     fn shot_eta_is_within_3x_after_10_percent_when_convergence_slows() {
-        // The fall per shot halves (or quarters) every 8,000 shots: late shots do less than
-        // the recent ones the rate was measured on.
-        for (kappa, half_life) in [(1000.0, 8000.0), (2500.0, 8000.0), (5000.0, 4000.0)] {
+        // The fall per shot halves every 8,000 shots (the total fall, 11.5, just exceeds the
+        // 9.2 to the tolerance: ~18,500 shots, the rate falling to a fifth): late shots do
+        // less than the recent ones the rate was measured on.
+        for (kappa, half_life) in [(1000.0, 8000.0), (2500.0, 8000.0), (5000.0, 8000.0)] {
             let worst = worst_ratio(500, kappa, |k| 1e-3 * 0.5f64.powf(k as f64 / half_life));
             assert!(
                 worst <= 3.0,
