@@ -486,6 +486,7 @@ impl Observer for Watcher<'_> {
             self.passes += 1;
             self.eta = ConvergenceEta::new(step.tolerance);
         }
+        self.eta.retarget(step.tolerance);
         self.eta.update(step.elapsed, step.residual);
         let start = step.kind == StepKind::Start;
         if start

@@ -46,6 +46,13 @@ impl ConvergenceEta {
         }
     }
 
+    /// Moves the tolerance (a solver whose stopping rule is not on the quantity itself, like
+    /// progressive refinement's, reports where it expects to stop as it goes: see
+    /// [`crate::solve::Step::tolerance`]).
+    pub fn retarget(&mut self, tolerance: f64) {
+        self.tolerance = tolerance.max(f64::MIN_POSITIVE);
+    }
+
     /// Records the quantity `r` at `seconds` since the start.
     pub fn update(&mut self, seconds: f64, r: f64) {
         if !(r.is_finite() && r > 0.0) {
@@ -107,5 +114,59 @@ mod tests {
         flat.update(0.0, 0.5);
         flat.update(1.0, 0.5);
         assert!(flat.eta().is_none());
+    }
+
+    /// The worst factor by which the ETA is off (predicted ÷ actual time left, or its
+    /// inverse) after the first 10 % of a solve in which ln r falls at `rate(t)` per second,
+    /// sampled every 10 ms, to r = 10⁻⁶; both times floored at 0.1 s (the resolution a bar
+    /// shows).
+    fn worst_ratio(rate: impl Fn(f64) -> f64) -> f64 {
+        let (tolerance, dt) = (1e-6f64, 0.01);
+        let mut samples = vec![(0.0, 0.0)];
+        let (mut t, mut ln_r) = (0.0, 0.0);
+        while ln_r > tolerance.ln() {
+            ln_r -= rate(t) * dt;
+            t += dt;
+            samples.push((t, ln_r));
+        }
+        let total = t;
+        let mut eta = ConvergenceEta::new(tolerance);
+        let mut worst: f64 = 1.0;
+        for (t, ln_r) in samples {
+            eta.update(t, ln_r.exp());
+            let left = total - t;
+            if t < 0.1 * total || left <= 0.0 {
+                continue;
+            }
+            let ratio = eta.eta().unwrap().max(0.1) / left.max(0.1);
+            worst = worst.max(ratio).max(1.0 / ratio);
+        }
+        worst
+    }
+
+    #[test]
+    fn eta_is_within_3x_after_10_percent_for_geometric_and_slowing_convergence() {
+        // Geometric (a stationary iteration at a steady cost per sweep): nearly exact.
+        assert!(worst_ratio(|_| 1.0) < 1.1);
+        // The rate halving every 20 s or 40 s (over a solve of 16–19 s): the window of the
+        // last third of the time lags behind it, but by less than 3×.
+        for half_life in [20.0, 40.0] {
+            let worst = worst_ratio(|t| 0.5f64.powf(t / half_life));
+            assert!(worst <= 3.0, "half-life {half_life} s: off by {worst:.2}×");
+        }
+    }
+
+    #[test]
+    fn retarget_moves_the_end_point() {
+        // r = e^{−t}: from r = e^{−2}, 10⁻³ is ln(e^{−2}/10⁻³) s away, 10⁻⁵ further.
+        let mut eta = ConvergenceEta::new(1e-3);
+        for k in 0..=20 {
+            let t = k as f64 * 0.1;
+            eta.update(t, (-t).exp());
+        }
+        let to = |tol: f64| ((-2.0f64).exp() / tol).ln();
+        assert!((eta.eta().unwrap() - to(1e-3)).abs() < 1e-9);
+        eta.retarget(1e-5);
+        assert!((eta.eta().unwrap() - to(1e-5)).abs() < 1e-9);
     }
 }

@@ -32,7 +32,10 @@ pub struct Step<'a> {
     /// The converging quantity: the relative change or residual of the iterative solvers,
     /// the unshot fraction of the emitted power for progressive refinement (dimensionless).
     pub residual: f64,
-    /// The value of `residual` at which the solver stops.
+    /// The value of `residual` at which the solver stops. Progressive refinement stops on
+    /// every element's estimated error, not on the unshot fraction it reports, so it gives
+    /// the unshot fraction at which that rule is expected to stop it (from the rule's
+    /// latest evaluation; it moves a little as the solve goes on).
     pub tolerance: f64,
     /// Seconds of solver work so far (form factors computed on the fly included; time in
     /// observers excluded).

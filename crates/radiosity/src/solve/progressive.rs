@@ -26,7 +26,11 @@
 //! with B_e the element's largest channel, B̄ the area-weighted mean and β = 0.05, the
 //! floor the stationary solvers' [`super::ErrorEstimate`] uses, so that black or unlit
 //! elements do not hold the solve up. Or after `max_shots`. The residual reported is the
-//! unshot power fraction. Bookkeeping is exact: emitted = absorbed + escaped + unshot after
+//! unshot power fraction, and the tolerance reported with it ([`Step::tolerance`]) is the
+//! unshot fraction at which the rule above is expected to stop the solve: the tolerance ×
+//! unshot fraction / remaining error at the rule's latest evaluation (the two fall together
+//! once the radiosities have settled), so that an observer extrapolating the residual to the
+//! tolerance (a progress bar's ETA) aims where the solve really stops. Bookkeeping is exact: emitted = absorbed + escaped + unshot after
 //! every shot.
 
 use super::observer::SolverClock;
@@ -49,6 +53,8 @@ pub struct Progressive {
     escaped: [f64; 3],
     emitted: f64,
     shots: usize,
+    /// (unshot fraction, remaining error) when the stopping rule was last evaluated.
+    last_check: Option<(f64, f64)>,
     clock: SolverClock,
 }
 
@@ -77,6 +83,7 @@ impl Progressive {
             escaped,
             emitted,
             shots: 0,
+            last_check: None,
             clock: SolverClock::start(),
         };
         state.source_power = state.source_powers(coupling);
@@ -229,13 +236,14 @@ impl Progressive {
         } else {
             StepKind::Shot
         };
+        self.check(mesh);
         let mut flow = self.report(mesh, kind, tolerance, observer);
         let mut exhausted = false;
         // At fixed shot counts (multiples of k), so that a solve run in pieces (image
         // sequences) stops where one run does.
         let check_every = (mesh.elements.len() / coupling.sources().max(1)).clamp(1, 16);
         while flow == Flow::Continue && self.shots < max_shots {
-            if self.shots % check_every == 0 && self.remaining_error(mesh) <= tolerance {
+            if self.shots % check_every == 0 && self.check(mesh) <= tolerance {
                 break;
             }
             if !self.shoot(coupling) {
@@ -248,6 +256,26 @@ impl Progressive {
         exhausted
     }
 
+    /// Evaluates the stopping rule's [`Progressive::remaining_error`] and keeps it with the
+    /// unshot fraction for [`Progressive::stopping_fraction`].
+    fn check(&mut self, mesh: &Mesh) -> f64 {
+        let error = self.remaining_error(mesh);
+        self.last_check = Some((self.unshot_fraction(), error));
+        error
+    }
+
+    /// The unshot fraction at which the stopping rule is expected to stop the solve for
+    /// `tolerance`: r·tolerance/e with r and e the unshot fraction and the remaining error at
+    /// the rule's latest evaluation (e is proportional to r through the ambient term, with a
+    /// factor that settles as the radiosities do); `tolerance` itself before any evaluation
+    /// or when nothing was left.
+    pub fn stopping_fraction(&self, tolerance: f64) -> f64 {
+        match self.last_check {
+            Some((r, e)) if r > 0.0 && e > 0.0 && (r / e).is_finite() => tolerance * r / e,
+            _ => tolerance,
+        }
+    }
+
     fn report(
         &mut self,
         mesh: &Mesh,
@@ -256,6 +284,7 @@ impl Progressive {
         observer: &mut dyn Observer,
     ) -> Flow {
         let residual = self.unshot_fraction();
+        let tolerance = self.stopping_fraction(tolerance);
         let index = self.shots;
         let Self {
             clock,
