@@ -104,7 +104,7 @@ impl Kernel for AnalyticPolygonKernel {
         SourcePolygon::new(vertices, PROBE, PENUMBRA, Division::SubAreas)
     }
 
-    fn receiver_order(&self, _size: f64, _clearance: &dyn Fn() -> f64) -> usize {
+    fn receiver_order(&self, _size: f64, _clearance: &dyn Fn(f64) -> f64) -> usize {
         2
     }
 

@@ -174,9 +174,10 @@ pub trait Kernel: Sync + Send {
     fn source(&self, vertices: &[DVec3]) -> SourcePolygon;
 
     /// The Gauss order per axis at which a receiving polygon of diameter `size` (m) is
-    /// integrated; `clearance` gives its distance (m) to the nearest other surface that can
-    /// exchange light with it (computed only if the kernel asks). Default 1: the centre.
-    fn receiver_order(&self, _size: f64, _clearance: &dyn Fn() -> f64) -> usize {
+    /// integrated; `clearance(limit)` gives its distance (m) to the nearest other surface
+    /// that can exchange light with it when that is below `limit` m, else ∞ (computed only
+    /// if the kernel asks; the search costs what lies within `limit`). Default 1: the centre.
+    fn receiver_order(&self, _size: f64, _clearance: &dyn Fn(f64) -> f64) -> usize {
         1
     }
 

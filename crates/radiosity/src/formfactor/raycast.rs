@@ -71,8 +71,9 @@ impl Kernel for RaycastKernel {
         )
     }
 
-    fn receiver_order(&self, size: f64, clearance: &dyn Fn() -> f64) -> usize {
-        let distance = clearance();
+    fn receiver_order(&self, size: f64, clearance: &dyn Fn(f64) -> f64) -> usize {
+        // Beyond quality × size the order is 1 whatever the distance: search no farther.
+        let distance = clearance(self.params.quality * size);
         if distance <= 1e-9 * size {
             self.params.max_order
         } else {

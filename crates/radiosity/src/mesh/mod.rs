@@ -307,33 +307,6 @@ impl Mesh {
             .collect()
     }
 
-    /// Distance (m) from element `element`'s centre to the nearest other surface that can
-    /// exchange light with it (some of that surface lies in front of the element and some of
-    /// the element in front of it, by more than 10⁻⁹ of the element's size, so that coplanar
-    /// neighbours do not count); infinite when there is none.
-    pub fn clearance(&self, element: usize) -> f64 {
-        let e = &self.elements[element];
-        let corners = self.element_corners(e);
-        let size = corners
-            .iter()
-            .map(|c| c.distance(e.centre))
-            .fold(0.0, f64::max);
-        let tol = 1e-9 * size;
-        self.surface_polygons
-            .iter()
-            .enumerate()
-            .filter(|(s, poly)| {
-                *s != e.surface as usize
-                    && poly
-                        .vertices()
-                        .iter()
-                        .any(|v| (*v - e.centre).dot(e.normal) > tol)
-                    && corners.iter().any(|&k| poly.plane_distance(k) > tol)
-            })
-            .map(|(_, poly)| poly.distance_to(e.centre))
-            .fold(f64::INFINITY, f64::min)
-    }
-
     /// Area of a patch in m² (sum of its elements).
     pub fn patch_area(&self, p: &Patch) -> f64 {
         self.elements[p.elements.start as usize..p.elements.end as usize]
