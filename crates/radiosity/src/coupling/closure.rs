@@ -188,14 +188,19 @@ pub fn balance_dense(
     }
     let mut x = vec![1.0f64; n];
     let mut y = vec![1.0f64; patches];
-    // Column sums Σ_e A_e x_e F_{e→q} y_q, in parallel by blocks of rows.
+    // Column sums Σ_e A_e x_e F_{e→q} y_q: partial sums over fixed blocks of rows in
+    // parallel, added in block order, so that the result does not depend on how the work
+    // was shared between threads (at most 64 partial vectors of `patches` values).
+    let block = n.div_ceil(64).max(256);
     let column_sums = |x: &[f64], y: &[f64]| -> Vec<f64> {
-        data.par_chunks(patches)
-            .zip(near.par_iter())
+        let partials: Vec<Vec<f64>> = data
+            .par_chunks(patches * block)
+            .zip(near.par_chunks(block))
             .enumerate()
-            .fold(
-                || vec![0.0; patches],
-                |mut acc, (e, (row, links))| {
+            .map(|(k, (rows, links))| {
+                let mut acc = vec![0.0; patches];
+                for (i, (row, links)) in rows.chunks(patches).zip(links).enumerate() {
+                    let e = k * block + i;
                     let w = mesh.elements[e].area * x[e];
                     for (a, (&f, yq)) in acc.iter_mut().zip(row.iter().zip(y)) {
                         *a += w * f as f64 * yq;
@@ -204,18 +209,17 @@ pub fn balance_dense(
                         let q = patch_of(s);
                         acc[q] += w * f as f64 * y[q];
                     }
-                    acc
-                },
-            )
-            .reduce(
-                || vec![0.0; patches],
-                |mut a, b| {
-                    for (a, b) in a.iter_mut().zip(b) {
-                        *a += b;
-                    }
-                    a
-                },
-            )
+                }
+                acc
+            })
+            .collect();
+        let mut sums = vec![0.0; patches];
+        for partial in partials {
+            for (s, p) in sums.iter_mut().zip(partial) {
+                *s += p;
+            }
+        }
+        sums
     };
     for _ in 0..MAX_ITERATIONS {
         let sums = column_sums(&x, &y);
