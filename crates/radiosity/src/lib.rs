@@ -21,6 +21,8 @@
 //!   illuminance at sensor points and on work-plane grids; [`pipeline`]: the stages in one
 //!   call;
 //! - [`export`]: the solved scene as a GLB with a lightmap;
+//! - [`generate`]: procedural scenes of any size (tessellated Cornell box, furnished rooms)
+//!   for scaling studies;
 //! - [`viewpoint`] and [`diagnose`]: a default camera that sees lit surfaces, and warnings
 //!   for scenes that would render black.
 //!
@@ -37,6 +39,7 @@ pub mod direct;
 pub mod display;
 pub mod export;
 pub mod formfactor;
+pub mod generate;
 pub mod geometry;
 pub mod io;
 pub mod light;

@@ -174,9 +174,10 @@ impl Scene {
 
     /// Object names in first-appearance order.
     pub fn object_names(&self) -> Vec<String> {
+        let mut seen = std::collections::HashSet::new();
         let mut names: Vec<String> = Vec::new();
         for s in &self.surfaces {
-            if !names.contains(&s.object) {
+            if seen.insert(s.object.as_str()) {
                 names.push(s.object.clone());
             }
         }

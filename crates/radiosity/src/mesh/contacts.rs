@@ -56,38 +56,100 @@ fn split_one(scene: &Scene, si: usize, near: &[usize]) -> Vec<Polygon> {
     let polygon = &scene.surfaces[si].polygon;
     let n = polygon.normal();
     let tol = 1e-7 * polygon.diameter();
-    let mut pieces = vec![polygon.clone()];
+    let mut segments = Vec::new();
     for &ti in near {
         let t = &scene.surfaces[ti].polygon;
         if ti == si || t.normal().cross(n).length() < 1e-6 {
             continue;
         }
         for (a, b) in t.edges() {
-            if polygon.plane_distance(a).abs() > tol || polygon.plane_distance(b).abs() > tol {
-                continue;
+            if polygon.plane_distance(a).abs() <= tol && polygon.plane_distance(b).abs() <= tol {
+                segments.push((a, b));
             }
-            let cut = n.cross(b - a).normalize();
-            let mut next = Vec::with_capacity(pieces.len() + 1);
-            for piece in pieces {
-                let split = crosses_interior(&piece, a, b, tol)
-                    .then(|| {
-                        let left = piece.clip_to_halfspace(a, cut)?;
-                        let right = piece.clip_to_halfspace(a, -cut)?;
-                        Some((Polygon::new(left).ok()?, Polygon::new(right).ok()?))
-                    })
-                    .flatten();
-                match split {
-                    Some((l, r)) if l.area() > tol * tol && r.area() > tol * tol => {
-                        next.push(l);
-                        next.push(r);
-                    }
-                    _ => next.push(piece),
-                }
-            }
-            pieces = next;
         }
     }
+    let mut pieces = Vec::new();
+    cut(polygon.clone(), &segments, n, tol, &mut pieces);
     pieces
+}
+
+/// Segments above which [`cut`] divides the polygon first.
+const DIVIDE_ABOVE: usize = 16;
+
+/// Cuts `piece` along every segment (each piece it crosses is cut by the segment's whole
+/// line, which keeps pieces convex) and appends the pieces to `out`. With many segments (a
+/// floor under thousands of boxes) the piece is first halved across its longest extent at
+/// the median segment midpoint and each half cut by the segments that reach it, so the
+/// cost is O(s log s) for s segments spread over the piece rather than O(s²) (each segment
+/// against every piece the others made), and no line runs across the whole floor.
+fn cut(piece: Polygon, segments: &[(DVec3, DVec3)], n: DVec3, tol: f64, out: &mut Vec<Polygon>) {
+    if segments.len() > DIVIDE_ABOVE {
+        let (lo, hi) = piece.bounds();
+        let axis = (hi - lo).max_position();
+        let mut mids: Vec<f64> = segments
+            .iter()
+            .map(|(a, b)| 0.5 * (a[axis] + b[axis]))
+            .collect();
+        let middle = mids.len() / 2;
+        let (_, &mut at, _) = mids.select_nth_unstable_by(middle, f64::total_cmp);
+        let mut normal = DVec3::ZERO;
+        normal[axis] = 1.0;
+        // The cutting plane must meet the piece's plane (not parallel to it) and leave both
+        // halves a share of the segments; otherwise cut directly.
+        let origin = {
+            let mut o = lo;
+            o[axis] = at;
+            o
+        };
+        let below: Vec<(DVec3, DVec3)> = segments
+            .iter()
+            .copied()
+            .filter(|(a, b)| a[axis].min(b[axis]) < at + tol)
+            .collect();
+        let above: Vec<(DVec3, DVec3)> = segments
+            .iter()
+            .copied()
+            .filter(|(a, b)| a[axis].max(b[axis]) > at - tol)
+            .collect();
+        let halves =
+            (n.cross(normal).length() > 1e-6 && at > lo[axis] + tol && at < hi[axis] - tol)
+                .then(|| {
+                    let left = piece.clip_to_halfspace(origin, -normal)?;
+                    let right = piece.clip_to_halfspace(origin, normal)?;
+                    Some((Polygon::new(left).ok()?, Polygon::new(right).ok()?))
+                })
+                .flatten();
+        if let Some((left, right)) = halves {
+            if below.len() < segments.len() && above.len() < segments.len() {
+                cut(left, &below, n, tol, out);
+                cut(right, &above, n, tol, out);
+                return;
+            }
+        }
+    }
+    let mut pieces = vec![piece];
+    for &(a, b) in segments {
+        let line = n.cross(b - a).normalize();
+        let mut next = Vec::with_capacity(pieces.len() + 1);
+        for piece in pieces {
+            let split = crosses_interior(&piece, a, b, tol)
+                .then(|| {
+                    let left = piece.clip_to_halfspace(a, line)?;
+                    let right = piece.clip_to_halfspace(a, -line)?;
+                    Some((Polygon::new(left).ok()?, Polygon::new(right).ok()?))
+                })
+                .flatten();
+            match split {
+                Some((l, r)) if l.area() > tol * tol && r.area() > tol * tol => {
+                    next.push(l);
+                    next.push(r);
+                }
+                _ => next.push(piece),
+            }
+        }
+        pieces = next;
+    }
+    out.extend(pieces);
 }
 
 /// Whether the segment a–b (in the polygon's plane) passes through the polygon's interior.

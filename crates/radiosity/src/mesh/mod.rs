@@ -21,6 +21,7 @@
 //! the surface. The element budget (`elements`) counts both sides.
 
 pub mod contacts;
+pub mod merge;
 pub mod refine;
 pub mod two_sided;
 

@@ -254,6 +254,10 @@ impl Hierarchical {
                 limit_mib: options.memory_limit >> 20,
             });
         }
+        // Coplanar neighbours of one object and material merge into convex polygons (a
+        // tessellated wall is the wall again): the hierarchy, not the input, sets the cost.
+        let (merged, original) = crate::mesh::merge::merge_coplanar(scene);
+        let scene = &merged;
         let objects = scene.object_names();
         let object_index: HashMap<&str, u32> = objects
             .iter()
@@ -271,7 +275,7 @@ impl Hierarchical {
                 (
                     poly,
                     InputPolygon {
-                        surface: i as u32,
+                        surface: original[i] as u32,
                         object: object_index[s.object.as_str()],
                         reflectance: m.reflectance,
                         exitance: m.exitance(),
