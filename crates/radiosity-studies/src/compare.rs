@@ -1036,7 +1036,7 @@ impl Comparison {
                 ))
                 .map_err(err)?
                 .label(format!(
-                    "form factors, shared and not in the other times ({})",
+                    "form factors, shared, not in the times ({})",
                     format_seconds(t)
                 ))
                 .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], style));
