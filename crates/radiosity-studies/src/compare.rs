@@ -34,9 +34,10 @@
 //! one full solve per link tolerance of a sweep (8 ε, 4 ε, 2 ε, ε; default ε = 0.01), each
 //! timed whole: hierarchy, refinement, link form factors and iterations (nothing shared or
 //! precomputed, unlike the other runs). It is one more series, one point per solve. Two
-//! caveats when reading it against the other runs: ε_obj ≤ ε for the same B (averaging
-//! first can only cancel differences), and B* has the study mesh's own discretisation
-//! error, which a fine hierarchical solve does not share, so ε_obj levels off there.
+//! caveats when reading it against the other runs: ε_obj(B) ≤ ε(B) for the same B on the
+//! study mesh (averaging first can only cancel differences), and B* has the study mesh's
+//! own discretisation error, which a fine hierarchical solve does not share, so ε_obj
+//! levels off there.
 //!
 //! See also: `radiosity compare`, [`radiosity::solve`].
 
