@@ -1,4 +1,5 @@
-//! `radiosity compare`: every solver on the same mesh, error versus time and iterations.
+//! `radiosity compare`: every solver on the same mesh, error versus time and iterations,
+//! and the hierarchical solver (its own mesh, error per object) at a sweep of tolerances.
 
 use crate::args::SolveArgs;
 use crate::cmd_progressive::prepare_output_dir;
@@ -18,6 +19,10 @@ use std::path::PathBuf;
     mut_arg("overshoot", |a| a.help(
         "ω of the overshooting progressive run, 1 < ω < 2 [default: 1.1]"
     )),
+    mut_arg("epsilon", |a| a.help(
+        "Hierarchical series: the finest link tolerance X; it solves at 8X, 4X, 2X and X \
+         [default: 0.01]"
+    )),
     mut_arg("solver", |a| a.hide(true)),
     mut_arg("adaptive", |a| a.hide(true)),
     mut_arg("refine_threshold", |a| a.hide(true)),
@@ -26,7 +31,8 @@ use std::path::PathBuf;
 pub struct CompareArgs {
     /// Scene file (.obj, .gltf, .glb, .mgf or .json); the built-in Cornell box if omitted.
     pub scene: Option<PathBuf>,
-    /// Output directory (created if missing): convergence.svg, convergence.png, table.md.
+    /// Output directory (created if missing): convergence.svg, convergence.png, table.md,
+    /// comparison.json.
     #[arg(short, long, value_name = "DIR")]
     pub output: PathBuf,
     /// Stop each run at this relative error [default: 1e-5].
@@ -65,6 +71,13 @@ pub fn run(args: CompareArgs) -> Result<()> {
         },
         max_shots: settings.solve.solve.max_shots,
         memory_limit: defaults.memory_limit,
+        // From the flag only: a scene file's ε is one solve's, not the series' finest.
+        hierarchical_epsilon: if args.solve.epsilon.is_some() {
+            settings.solve.hierarchical.epsilon
+        } else {
+            defaults.hierarchical_epsilon
+        },
+        hierarchical_solves: defaults.hierarchical_solves,
     };
     if !(options.overshoot > 1.0 && options.overshoot < 2.0) {
         bail!(
@@ -79,10 +92,13 @@ pub fn run(args: CompareArgs) -> Result<()> {
         );
     }
     prepare_output_dir(&args.output)?;
-    let mesh = Mesh::build(&loaded.scene, &settings.solve.mesh).context("meshing")?;
+    let mut mesh = Mesh::build(&loaded.scene, &settings.solve.mesh).context("meshing")?;
+    // The first shot from light sources, as every solve takes it (the hierarchical runs
+    // take theirs in the pipeline).
+    radiosity::direct::illuminate(&mut mesh, &loaded.scene.lights);
     let bars = Bars::new(args.solve.quiet);
     let comparison = compare(
-        &loaded.scene.name,
+        &loaded.scene,
         &mesh,
         settings.solve.form_factor,
         &options,
@@ -93,7 +109,7 @@ pub fn run(args: CompareArgs) -> Result<()> {
     print!("{table}");
     if !args.solve.quiet {
         eprintln!(
-            "wrote {} (convergence.svg, convergence.png, table.md)",
+            "wrote {} (convergence.svg, convergence.png, table.md, comparison.json)",
             args.output.display()
         );
     }

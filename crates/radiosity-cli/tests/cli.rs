@@ -313,3 +313,43 @@ fn bad_options_fail_cleanly() {
         assert!(!out.exists(), "{args:?}: output left behind");
     }
 }
+
+#[test]
+fn elements_bound_the_hierarchical_leaves() {
+    // `--elements N` with the hierarchical solver: no element is subdivided below 1/N of the
+    // total area, so subdivision makes at most N leaves, plus input polygons left whole. A
+    // fine ε (0.005) asks for far more: 12k leaves without the bound.
+    let d = tmp();
+    let leaves = |extra: &[&str]| {
+        let report = d.path().join("r.json");
+        let o = run(&[
+            &[
+                "solve",
+                "--solver",
+                "hierarchical",
+                "--epsilon",
+                "0.005",
+                "--report",
+                report.to_str().unwrap(),
+                "--force",
+                "--quiet",
+            ],
+            extra,
+        ]
+        .concat());
+        assert!(o.status.success(), "{}", stderr(&o));
+        let r: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+        r["totals"]["elements"].as_u64().unwrap()
+    };
+    let scene = radiosity::cornell::cornell_box();
+    let inputs = radiosity::mesh::two_sided::with_back_sides(&scene)
+        .map_or(scene.surfaces.len(), |s| s.surfaces.len()) as u64;
+    let bounded = leaves(&["--elements", "2000"]);
+    let free = leaves(&[]);
+    assert!(
+        bounded <= 2000 + inputs,
+        "{bounded} leaves, {inputs} inputs"
+    );
+    assert!(bounded < free, "{bounded} with the bound, {free} without");
+}

@@ -224,12 +224,20 @@ fn compare_writes_plot_and_table() {
         out.to_str().unwrap(),
         "--elements",
         "200",
+        // The hierarchical series at 0.32, 0.16, 0.08, 0.04: coarse, to stay fast.
+        "--epsilon",
+        "0.04",
         "-q",
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert_eq!(
         files(&out),
-        ["convergence.png", "convergence.svg", "table.md"]
+        [
+            "comparison.json",
+            "convergence.png",
+            "convergence.svg",
+            "table.md"
+        ]
     );
     let table = std::fs::read_to_string(out.join("table.md")).unwrap();
     for name in [
@@ -238,6 +246,8 @@ fn compare_writes_plot_and_table() {
         "Gauss–Seidel",
         "progressive + ambient",
         "overshoot",
+        "hierarchical (per-object ε, whole solve)",
+        "| 0.04 |",
     ] {
         assert!(table.contains(name), "{table}");
     }
@@ -271,5 +281,6 @@ fn compare_rejects_bad_options() {
     assert_fails_cleanly(&o(&["--overshoot", "1"]), &["--overshoot"]);
     assert_fails_cleanly(&o(&["--target-error", "2"]), &["--target-error"]);
     assert_fails_cleanly(&o(&["--tolerance", "1e-3"]), &["--target-error"]);
+    assert_fails_cleanly(&o(&["--epsilon", "1"]), &["--epsilon"]);
     assert!(!out.exists());
 }

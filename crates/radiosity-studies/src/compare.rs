@@ -24,22 +24,41 @@
 //! shots so far (column look-ups included), or the whole direct solve (patch matrix, LU and
 //! refinement). Evaluating the error is not timed.
 //!
+//! **Hierarchical radiosity** makes its own mesh (the leaves of its refined hierarchy), so
+//! it cannot be measured element by element against B*. It is compared by what any mesh
+//! has: the per-object area-averaged radiosity ([`Report`]), against the per-object means of
+//! the same reference B*,
+//!
+//!   ε_obj(B) = Σ_o A_o Σ_c |B̄_o,c − B̄*_o,c| / Σ_o A_o Σ_c (B̄*_o,c − Ē_o,c),
+//!
+//! one full solve per link tolerance of a sweep (8 ε, 4 ε, 2 ε, ε; default ε = 0.01), each
+//! timed whole: hierarchy, refinement, link form factors and iterations (nothing shared or
+//! precomputed, unlike the other runs). It is one more series, one point per solve. Two
+//! caveats when reading it against the other runs: ε_obj(B) ≤ ε(B) for the same B on the
+//! study mesh (averaging first can only cancel differences), and B* has the study mesh's
+//! own discretisation error, which a fine hierarchical solve does not share, so ε_obj
+//! levels off there.
+//!
 //! See also: `radiosity compare`, [`radiosity::solve`].
 
 use crate::font::register_font;
 use radiosity::accel::Visibility;
 use radiosity::coupling::closure::Enclosure;
+use radiosity::coupling::hierarchical::HierarchicalOptions;
 use radiosity::coupling::{Coupling, Dense, NearField};
 use radiosity::formfactor::{engine, FormFactorMethod};
 use radiosity::mesh::Mesh;
-use radiosity::pipeline::solver_memory;
-use radiosity::progress::Progress;
+use radiosity::pipeline::{solve_scene, solver_memory, SolveSettings};
+use radiosity::progress::{NoProgress, Progress};
+use radiosity::report::Report;
+use radiosity::scene::Scene;
 use radiosity::solve::progressive::Progressive;
 use radiosity::solve::{
     display_radiosity, solve, Flow, NoObserver, SolveOptions, SolverKind, Step,
 };
 use std::fmt::Write as _;
 use std::path::Path;
+use std::time::Instant;
 
 /// The error levels the table reports the time to reach.
 pub const THRESHOLDS: [f64; 3] = [1e-2, 1e-3, 1e-4];
@@ -57,6 +76,9 @@ pub enum Method {
     ProgressiveAmbient,
     /// Progressive refinement shooting ω·unshot.
     ProgressiveOvershoot(f64),
+    /// Hierarchical radiosity on its own mesh: one whole solve per link tolerance, error
+    /// per object (see the module documentation).
+    Hierarchical,
 }
 
 impl Method {
@@ -69,6 +91,7 @@ impl Method {
             Method::Progressive => "progressive".into(),
             Method::ProgressiveAmbient => "progressive + ambient".into(),
             Method::ProgressiveOvershoot(w) => format!("progressive, overshoot ω = {w}"),
+            Method::Hierarchical => "hierarchical (per-object ε, whole solve)".into(),
         }
     }
 
@@ -76,7 +99,7 @@ impl Method {
     pub fn step_name(self) -> &'static str {
         match self {
             Method::Direct => "solve",
-            Method::Jacobi | Method::GaussSeidel => "iterations",
+            Method::Jacobi | Method::GaussSeidel | Method::Hierarchical => "iterations",
             _ => "shots",
         }
     }
@@ -90,6 +113,7 @@ impl Method {
             Method::Progressive => RGBColor(44, 160, 44),
             Method::ProgressiveAmbient => RGBColor(148, 103, 189),
             Method::ProgressiveOvershoot(_) => RGBColor(214, 39, 40),
+            Method::Hierarchical => RGBColor(23, 190, 207),
         }
     }
 }
@@ -107,6 +131,10 @@ pub struct CompareOptions {
     pub max_shots: Option<usize>,
     /// Memory the matrices may use, bytes.
     pub memory_limit: u64,
+    /// The finest link tolerance ε of the hierarchical series (dimensionless, in (0, 1)).
+    pub hierarchical_epsilon: f64,
+    /// Hierarchical solves in the series, at 2^(k−1) ε, …, 2 ε, ε (0: no hierarchical series).
+    pub hierarchical_solves: usize,
 }
 
 impl Default for CompareOptions {
@@ -118,6 +146,9 @@ impl Default for CompareOptions {
             max_iterations: 2000,
             max_shots: None,
             memory_limit: SolveOptions::default().memory_limit,
+            // 0.08 … 0.01: from coarser than the solver's default (0.02) to finer.
+            hierarchical_epsilon: 0.01,
+            hierarchical_solves: 4,
         }
     }
 }
@@ -174,8 +205,26 @@ pub struct Comparison {
     pub form_factor_seconds: f64,
     pub reference: Reference,
     /// Direct (when it ran), Jacobi, Gauss–Seidel, progressive, progressive + ambient,
-    /// progressive with overshooting.
+    /// progressive with overshooting, and hierarchical (when its series ran; one sample per
+    /// solve, in the order of [`Comparison::hierarchical`]).
     pub runs: Vec<Run>,
+    /// The hierarchical solves, coarsest tolerance first.
+    pub hierarchical: Vec<HierarchicalPoint>,
+}
+
+/// One hierarchical solve of the series.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HierarchicalPoint {
+    /// Link tolerance ε (dimensionless).
+    pub epsilon: f64,
+    /// Leaves of the refined hierarchy (its mesh's elements).
+    pub leaves: usize,
+    /// Iterations over all refinement stages.
+    pub iterations: usize,
+    /// Wall time of the whole solve, s.
+    pub seconds: f64,
+    /// Per-object error ε_obj (dimensionless; see the module documentation).
+    pub error: f64,
 }
 
 /// Why a comparison could not run.
@@ -202,6 +251,10 @@ pub enum CompareError {
     Diverged(String),
     #[error("writing {path}: {message}")]
     Write { path: String, message: String },
+    #[error("hierarchical solve at ε = {epsilon}: {message}")]
+    Hierarchical { epsilon: f64, message: String },
+    #[error("the hierarchical series' finest ε must be in (0, 1), got {0}")]
+    BadEpsilon(f64),
 }
 
 /// ε(B) against a fixed reference (see the module documentation).
@@ -254,11 +307,75 @@ impl ErrorMeasure {
     }
 }
 
-/// Runs every solver on `mesh` with form factors by `method` (computed once into the dense
-/// coupling and shared) and records each one's error after every iteration or shot, by
-/// watching the library's own solvers ([`radiosity::solve::Observer`]).
+/// ε_obj(B) against the per-object means of a fixed reference (see the module
+/// documentation). Objects are matched by name, so any mesh of the same scene can be
+/// measured.
+struct ObjectMeasure {
+    /// Name, area (m²) and mean reference radiosity (W·m⁻²) per object.
+    objects: Vec<(String, f64, [f64; 3])>,
+    denominator: f64,
+}
+
+impl ObjectMeasure {
+    fn new(scene: &str, mesh: &Mesh, reference: &radiosity::solve::Solution) -> Self {
+        let report = Report::new(scene, mesh, reference, "");
+        let objects: Vec<(String, f64, [f64; 3])> = report
+            .objects
+            .iter()
+            .filter(|o| o.area > 0.0)
+            .map(|o| (o.name.clone(), o.area, o.radiosity))
+            .collect();
+        let reflected: f64 = report
+            .objects
+            .iter()
+            .filter(|o| o.area > 0.0)
+            .map(|o| {
+                o.area
+                    * (0..3)
+                        .map(|c| (o.radiosity[c] - o.emitted_exitance[c]).abs())
+                        .sum::<f64>()
+            })
+            .sum();
+        let total: f64 = objects
+            .iter()
+            .map(|(_, a, b)| a * (b[0].abs() + b[1].abs() + b[2].abs()))
+            .sum();
+        // As for the element measure: nothing reflected falls back to the whole radiosity.
+        let denominator = if reflected > 0.0 {
+            reflected
+        } else if total > 0.0 {
+            total
+        } else {
+            1.0
+        };
+        Self {
+            objects,
+            denominator,
+        }
+    }
+
+    /// ε_obj of a solution on its own mesh; an error names an object of the reference that
+    /// is missing from it.
+    fn error(&self, report: &Report) -> Result<f64, String> {
+        let mut sum = 0.0;
+        for (name, area, reference) in &self.objects {
+            let b = report
+                .object(name)
+                .ok_or_else(|| format!("object {name:?} is missing from its mesh"))?
+                .radiosity;
+            sum += area * (0..3).map(|c| (b[c] - reference[c]).abs()).sum::<f64>();
+        }
+        Ok(sum / self.denominator)
+    }
+}
+
+/// Runs every solver on `mesh` (meshed from `scene`) with form factors by `method`
+/// (computed once into the dense coupling and shared) and records each one's error after
+/// every iteration or shot, by watching the library's own solvers
+/// ([`radiosity::solve::Observer`]); then solves `scene` hierarchically at each tolerance of
+/// the series ([`CompareOptions::hierarchical_solves`]) and measures it per object.
 pub fn compare(
-    scene: &str,
+    scene: &Scene,
     mesh: &Mesh,
     method: FormFactorMethod,
     options: &CompareOptions,
@@ -269,6 +386,11 @@ pub fn compare(
     }
     if !(options.target_error > 0.0 && options.target_error < 1.0) {
         return Err(CompareError::BadTarget(options.target_error));
+    }
+    if options.hierarchical_solves > 0
+        && !(options.hierarchical_epsilon > 0.0 && options.hierarchical_epsilon < 1.0)
+    {
+        return Err(CompareError::BadEpsilon(options.hierarchical_epsilon));
     }
     let (n, m) = (mesh.len(), mesh.patches.len());
     let needed = solver_memory(SolverKind::GaussSeidel, n, m);
@@ -292,7 +414,7 @@ pub fn compare(
     check_finite(&start_b, Method::Jacobi)?;
 
     let mut runs = Vec::new();
-    let (reference, measure) = if direct_fits {
+    let (reference, measure, objects) = if direct_fits {
         progress.start("direct", 1);
         let direct = solve(
             &coupling,
@@ -304,6 +426,7 @@ pub fn compare(
         )
         .map_err(|_| CompareError::Diverged(Method::Direct.label()))?;
         progress.finish();
+        let objects = ObjectMeasure::new(&scene.name, mesh, &direct);
         let measure = ErrorMeasure::new(mesh, direct.radiosity);
         runs.push(Run {
             method: Method::Direct,
@@ -314,7 +437,7 @@ pub fn compare(
             }],
             note: Some("the reference".into()),
         });
-        (Reference::Direct, measure)
+        (Reference::Direct, measure, objects)
     } else {
         let tight = SolveOptions {
             solver: SolverKind::GaussSeidel,
@@ -340,7 +463,8 @@ pub fn compare(
                 iterations: reference.stats.iterations,
                 residual: reference.stats.residual,
             },
-            ErrorMeasure::new(mesh, reference.radiosity),
+            ErrorMeasure::new(mesh, reference.radiosity.clone()),
+            ObjectMeasure::new(&scene.name, mesh, &reference),
         )
     };
 
@@ -448,15 +572,100 @@ pub fn compare(
             runs.push(finish_run(Method::ProgressiveAmbient, ambient, options));
         }
     }
+    // The dense coupling is no longer needed; the hierarchy takes the memory it leaves.
+    drop(coupling);
+    let hierarchical = hierarchical_series(scene, method, &objects, options, progress)?;
+    if !hierarchical.is_empty() {
+        let epsilons: Vec<String> = hierarchical
+            .iter()
+            .map(|p| format!("{}", p.epsilon))
+            .collect();
+        let note = format!(
+            "one whole solve per ε = {} (its own mesh: {} … {} leaves)",
+            epsilons.join(", "),
+            hierarchical[0].leaves,
+            hierarchical[hierarchical.len() - 1].leaves
+        );
+        runs.push(Run {
+            method: Method::Hierarchical,
+            samples: hierarchical
+                .iter()
+                .map(|p| Sample {
+                    iteration: p.iterations,
+                    seconds: p.seconds,
+                    error: p.error,
+                })
+                .collect(),
+            note: Some(note),
+        });
+    }
     Ok(Comparison {
-        scene: scene.to_owned(),
+        scene: scene.name.clone(),
         elements: n,
         patches: m,
         form_factor: method.name().to_owned(),
         form_factor_seconds,
         reference,
         runs,
+        hierarchical,
     })
+}
+
+/// Solves `scene` hierarchically at 2^(k−1) ε, …, 2 ε, ε (coarsest first), each solve
+/// whole and timed whole, with the library's default stopping rule, and measures each
+/// per object.
+fn hierarchical_series(
+    scene: &Scene,
+    method: FormFactorMethod,
+    objects: &ObjectMeasure,
+    options: &CompareOptions,
+    progress: &dyn Progress,
+) -> Result<Vec<HierarchicalPoint>, CompareError> {
+    let k = options.hierarchical_solves;
+    progress.start("hierarchical", k as u64);
+    let mut points = Vec::with_capacity(k);
+    for i in (0..k).rev() {
+        let epsilon = options.hierarchical_epsilon * 2f64.powi(i as i32);
+        let settings = SolveSettings {
+            form_factor: method,
+            solve: SolveOptions {
+                solver: SolverKind::Hierarchical,
+                ..Default::default()
+            },
+            hierarchical: HierarchicalOptions {
+                epsilon,
+                ..Default::default()
+            },
+            ..Default::default()
+        };
+        let failed = |e: &dyn std::error::Error| {
+            let mut message = e.to_string();
+            let mut source = e.source();
+            while let Some(s) = source {
+                let _ = write!(message, ": {s}");
+                source = s.source();
+            }
+            CompareError::Hierarchical { epsilon, message }
+        };
+        let start = Instant::now();
+        let solved = solve_scene(scene, &settings, &NoProgress).map_err(|e| failed(&e))?;
+        let seconds = start.elapsed().as_secs_f64();
+        check_finite(&solved.solution.radiosity, Method::Hierarchical)?;
+        let report = Report::new(&scene.name, &solved.mesh, &solved.solution, method.name());
+        let error = objects
+            .error(&report)
+            .map_err(|message| CompareError::Hierarchical { epsilon, message })?;
+        points.push(HierarchicalPoint {
+            epsilon,
+            leaves: solved.mesh.len(),
+            iterations: solved.solution.stats.iterations,
+            seconds,
+            error,
+        });
+        progress.inc(1);
+    }
+    progress.finish();
+    Ok(points)
 }
 
 fn check_finite(b: &[[f64; 3]], method: Method) -> Result<(), CompareError> {
@@ -542,8 +751,21 @@ impl Comparison {
         let _ = writeln!(
             t,
             "- Times: solver work only — the iterations or shots so far, or the whole direct \
-             solve (patch matrix, LU, refinement). Evaluating ε is not timed.\n"
+             solve (patch matrix, LU, refinement). Evaluating ε is not timed."
         );
+        if !self.hierarchical.is_empty() {
+            let _ = writeln!(
+                t,
+                "- Hierarchical: its own mesh (the leaves of its hierarchy), so its error is \
+                 per object: ε_obj = Σ_o A_o Σ_c |B̄_o,c − B̄*_o,c| / Σ_o A_o Σ_c (B̄*_o,c − \
+                 Ē_o,c), with B̄ the area-averaged radiosity of object o, against the same B*. \
+                 One whole solve per link tolerance, timed whole (hierarchy, link form \
+                 factors, refinement, iterations); its rows' iterations are that solve's. \
+                 ε_obj ≤ ε for the same B, and it levels off at the mesh's own discretisation \
+                 error in B*."
+            );
+        }
+        t.push('\n');
         let _ = writeln!(
             t,
             "| solver | ε ≤ 1e-2 | ε ≤ 1e-3 | ε ≤ 1e-4 | final ε | steps run | note |"
@@ -586,17 +808,105 @@ impl Comparison {
                 run.note.as_deref().unwrap_or("")
             );
         }
+        if !self.hierarchical.is_empty() {
+            let _ = writeln!(
+                t,
+                "\n## Hierarchical: accuracy against time\n\n\
+                 | link tolerance ε | leaves | iterations | time (whole solve) | ε_obj |\n\
+                 |---|---|---|---|---|"
+            );
+            for p in &self.hierarchical {
+                let _ = writeln!(
+                    t,
+                    "| {} | {} | {} | {} | {:.1e} |",
+                    p.epsilon,
+                    p.leaves,
+                    p.iterations,
+                    format_seconds(p.seconds),
+                    p.error
+                );
+            }
+        }
         t
     }
 
-    /// Writes `table.md`, `convergence.svg` and `convergence.png` into `dir` (which must
-    /// exist), each atomically.
+    /// `comparison.json`: the table's content with every sample, for scripts.
+    pub fn to_json(&self) -> serde_json::Value {
+        use serde_json::json;
+        let reference = match &self.reference {
+            Reference::Direct => json!({ "kind": "direct" }),
+            Reference::GaussSeidel {
+                iterations,
+                residual,
+            } => json!({
+                "kind": "gauss-seidel",
+                "iterations": iterations,
+                "residual": residual,
+            }),
+        };
+        let runs: Vec<serde_json::Value> = self
+            .runs
+            .iter()
+            .map(|run| {
+                json!({
+                    "solver": run.method.label(),
+                    "error": if run.method == Method::Hierarchical {
+                        "per-object"
+                    } else {
+                        "per-element"
+                    },
+                    "steps": run.method.step_name(),
+                    "note": run.note,
+                    "samples": run
+                        .samples
+                        .iter()
+                        .map(|s| json!({
+                            "iteration": s.iteration,
+                            "seconds": s.seconds,
+                            "error": s.error,
+                        }))
+                        .collect::<Vec<_>>(),
+                })
+            })
+            .collect();
+        let hierarchical: Vec<serde_json::Value> = self
+            .hierarchical
+            .iter()
+            .map(|p| {
+                json!({
+                    "epsilon": p.epsilon,
+                    "leaves": p.leaves,
+                    "iterations": p.iterations,
+                    "seconds": p.seconds,
+                    "error": p.error,
+                })
+            })
+            .collect();
+        json!({
+            "scene": self.scene,
+            "elements": self.elements,
+            "patches": self.patches,
+            "form_factor": self.form_factor,
+            "form_factor_seconds": self.form_factor_seconds,
+            "reference": reference,
+            "runs": runs,
+            "hierarchical": hierarchical,
+        })
+    }
+
+    /// Writes `table.md`, `comparison.json`, `convergence.svg` and `convergence.png` into
+    /// `dir` (which must exist), each atomically.
     pub fn write(&self, dir: &Path) -> Result<(), CompareError> {
         use plotters::prelude::{BitMapBackend, IntoDrawingArea, SVGBackend};
         let table = self.table_markdown();
         let path = dir.join("table.md");
         radiosity::io::atomic::write_atomically(&path, |w| w.write_all(table.as_bytes()))
             .map_err(|e| write_error(&path, e))?;
+        let json_path = dir.join("comparison.json");
+        let json = serde_json::to_string_pretty(&self.to_json())
+            .map_err(|e| write_error(&json_path, e))?;
+        radiosity::io::atomic::write_atomically(&json_path, |w| w.write_all(json.as_bytes()))
+            .map_err(|e| write_error(&json_path, e))?;
 
         register_font().map_err(|e| write_error(&path, e))?;
         let svg_path = dir.join("convergence.svg");
@@ -663,6 +973,14 @@ impl Comparison {
             t_min = t_min.min(d.seconds);
             t_max = t_max.max(d.seconds);
         }
+        // The hierarchical solves are timed whole; the others share form factors computed
+        // beforehand, marked so that the two can be read together.
+        let form_factor_mark = (!self.hierarchical.is_empty() && self.form_factor_seconds > 0.0)
+            .then_some(self.form_factor_seconds);
+        if let Some(t) = form_factor_mark {
+            t_min = t_min.min(t);
+            t_max = t_max.max(t);
+        }
         if !(t_min.is_finite() && t_max > t_min) {
             t_min = 1e-6;
             t_max = t_max.max(1e-3);
@@ -697,7 +1015,9 @@ impl Comparison {
             .map_err(err)?;
         steps_chart
             .configure_mesh()
-            .x_desc("iterations (Jacobi, Gauss–Seidel) or shots (progressive), log scale")
+            .x_desc(
+                "iterations (Jacobi, Gauss–Seidel, hierarchical) or shots (progressive), log scale",
+            )
             .y_desc("relative L1 error ε (log scale)")
             .x_label_formatter(&|x| format!("{x:.0}"))
             .y_label_formatter(&|y| format!("{y:.0e}"))
@@ -706,6 +1026,22 @@ impl Comparison {
             .draw()
             .map_err(err)?;
 
+        if let Some(t) = form_factor_mark {
+            let style = ShapeStyle::from(&RGBColor(127, 127, 127)).stroke_width(2);
+            time_chart
+                .draw_series(DashedLineSeries::new(
+                    vec![(t, y_range.start), (t, y_range.end)],
+                    2,
+                    4,
+                    style,
+                ))
+                .map_err(err)?
+                .label(format!(
+                    "form factors, shared, not in the times ({})",
+                    format_seconds(t)
+                ))
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], style));
+        }
         for run in &self.runs {
             let colour = run.method.colour();
             let style = ShapeStyle::from(&colour).stroke_width(2);
@@ -731,6 +1067,20 @@ impl Comparison {
                 .filter(|s| s.seconds > 0.0 && s.error > 0.0)
                 .map(|s| (s.seconds, s.error))
                 .collect();
+            if run.method == Method::Hierarchical {
+                // Separate solves, not one history: each point is marked.
+                time_chart
+                    .draw_series(by_time.iter().map(|&p| Circle::new(p, 4, style.filled())))
+                    .map_err(err)?;
+                steps_chart
+                    .draw_series(
+                        run.samples
+                            .iter()
+                            .filter(|s| s.iteration > 0 && s.error > 0.0)
+                            .map(|s| Circle::new((s.iteration as f64, s.error), 4, style.filled())),
+                    )
+                    .map_err(err)?;
+            }
             time_chart
                 .draw_series(LineSeries::new(by_time, style))
                 .map_err(err)?
@@ -792,9 +1142,24 @@ mod tests {
         })
     }
 
+    fn scene() -> &'static Scene {
+        static S: OnceLock<Scene> = OnceLock::new();
+        S.get_or_init(cornell_box)
+    }
+
+    /// The test series: ε = 0.08, 0.04, 0.02 (the finest of the default series, 0.01, adds
+    /// 2–4 s and sits at the 400-element reference's own error; see below).
+    fn options() -> CompareOptions {
+        CompareOptions {
+            hierarchical_epsilon: 0.02,
+            hierarchical_solves: 3,
+            ..Default::default()
+        }
+    }
+
     fn run_with(options: &CompareOptions) -> Result<Comparison, CompareError> {
         compare(
-            "cornell",
+            scene(),
             mesh(),
             FormFactorMethod::default(),
             options,
@@ -805,7 +1170,12 @@ mod tests {
     /// The Cornell box at ~400 elements, every solver (shared by the tests below).
     fn comparison() -> &'static Comparison {
         static C: OnceLock<Comparison> = OnceLock::new();
-        C.get_or_init(|| run_with(&CompareOptions::default()).unwrap())
+        C.get_or_init(|| run_with(&options()).unwrap())
+    }
+
+    /// The runs on the study mesh (all but hierarchical).
+    fn on_the_mesh(c: &Comparison) -> impl Iterator<Item = &Run> {
+        c.runs.iter().filter(|r| r.method != Method::Hierarchical)
     }
 
     fn errors(run: &Run) -> Vec<f64> {
@@ -816,9 +1186,9 @@ mod tests {
     fn every_solver_converges_to_the_direct_solution() {
         let c = comparison();
         assert_eq!(c.reference, Reference::Direct);
-        assert_eq!(c.runs.len(), 6);
+        assert_eq!(c.runs.len(), 7);
         let target = CompareOptions::default().target_error;
-        for run in &c.runs {
+        for run in on_the_mesh(c) {
             let last = run.last().unwrap();
             assert!(
                 last.error <= target,
@@ -867,7 +1237,7 @@ mod tests {
             assert!(e.len() > 3);
         }
         // Hence the table's times to 1e-2, 1e-3, 1e-4 increase along each run.
-        for run in &c.runs {
+        for run in on_the_mesh(c) {
             let t: Vec<f64> = THRESHOLDS
                 .iter()
                 .map(|&th| run.first_below(th).unwrap().seconds)
@@ -924,7 +1294,12 @@ mod tests {
         names.sort();
         assert_eq!(
             names,
-            ["convergence.png", "convergence.svg", "table.md"],
+            [
+                "comparison.json",
+                "convergence.png",
+                "convergence.svg",
+                "table.md"
+            ],
             "no temporary files left"
         );
         let table = std::fs::read_to_string(dir.path().join("table.md")).unwrap();
@@ -949,6 +1324,103 @@ mod tests {
         let svg = std::fs::read_to_string(dir.path().join("convergence.svg")).unwrap();
         assert!(svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>"));
         assert!(svg.contains("Gauss–Seidel") && svg.contains("solver time (s, log scale)"));
+        assert!(svg.contains(&Method::Hierarchical.label()));
+        // The hierarchical series in the table's own section and in the JSON, point by point.
+        assert!(table.contains("## Hierarchical: accuracy against time"));
+        for p in &c.hierarchical {
+            assert!(
+                table.contains(&format!("| {} | {} |", p.epsilon, p.leaves)),
+                "{table}"
+            );
+        }
+        let json: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(dir.path().join("comparison.json")).unwrap(),
+        )
+        .unwrap();
+        assert_eq!(json["runs"].as_array().unwrap().len(), c.runs.len());
+        let series = json["hierarchical"].as_array().unwrap();
+        assert_eq!(series.len(), c.hierarchical.len());
+        for (j, p) in series.iter().zip(&c.hierarchical) {
+            assert_eq!(j["epsilon"].as_f64(), Some(p.epsilon));
+            assert_eq!(j["error"].as_f64(), Some(p.error));
+        }
+        assert_eq!(json["runs"][6]["error"], "per-object");
+    }
+
+    #[test]
+    fn hierarchical_error_falls_as_its_tolerance_shrinks() {
+        let c = comparison();
+        let run = c
+            .run(Method::Hierarchical)
+            .expect("the hierarchical series");
+        let epsilons: Vec<f64> = c.hierarchical.iter().map(|p| p.epsilon).collect();
+        assert_eq!(epsilons, [0.08, 0.04, 0.02]);
+        assert_eq!(run.samples.len(), 3);
+        for (s, p) in run.samples.iter().zip(&c.hierarchical) {
+            assert_eq!(
+                (s.seconds, s.error, s.iteration),
+                (p.seconds, p.error, p.iterations)
+            );
+            assert!(p.seconds > 0.0 && p.iterations > 0);
+        }
+        // A smaller tolerance refines more links, down to more leaves, and costs more time.
+        for w in c.hierarchical.windows(2) {
+            assert!(w[1].leaves > w[0].leaves, "{w:?}");
+        }
+        // ... and lands closer to B* per object. Measured (release, this mesh): ε_obj =
+        // 2.5 %, 1.8 %, 1.1 %; against Mitsuba (cornell_reference.json) the same solves are
+        // 1.9 %, 1.2 %, 0.6 % off and the 400-element B* itself 0.9 %, which is why ε = 0.01
+        // (0.96 % here) is left out: it is at the reference's own error, where the order of
+        // two nearby values would be noise. Each halving must gain at least 10 % (measured
+        // 27 % and 41 %), and the series falls from clearly above the reference's 0.9 %
+        // (coarse links) to within 2 %, the issue's per-polygon mark at the default ε.
+        for w in c.hierarchical.windows(2) {
+            assert!(w[1].error < 0.9 * w[0].error, "{w:?}");
+        }
+        let (coarse, fine) = (c.hierarchical[0].error, c.hierarchical[2].error);
+        assert!(coarse > 0.015 && fine < 0.02, "{coarse} → {fine}");
+    }
+
+    #[test]
+    fn per_object_error_of_scaled_reflection_is_the_scale() {
+        // Closed form: B = E + (1 + δ)(B* − E) with B* ≥ E gives ε_obj = δ exactly (every
+        // object's mean reflected part grows by δ), whatever the mesh; B* itself gives 0.
+        let mesh = mesh();
+        let settings = SolveSettings {
+            mesh: MeshOptions {
+                elements: 400,
+                ..Default::default()
+            },
+            solve: SolveOptions {
+                solver: SolverKind::GaussSeidel,
+                ..Default::default()
+            },
+            ..Default::default()
+        };
+        let solved = solve_scene(scene(), &settings, &NoProgress).unwrap();
+        assert_eq!(solved.mesh.len(), mesh.len());
+        let measure = ObjectMeasure::new("cornell", &solved.mesh, &solved.solution);
+        let report = |b: Vec<[f64; 3]>| {
+            let mut solution = solved.solution.clone();
+            solution.radiosity = b;
+            Report::new("cornell", &solved.mesh, &solution, "")
+        };
+        let same = measure
+            .error(&report(solved.solution.radiosity.clone()))
+            .unwrap();
+        assert!(same.abs() < 1e-15, "{same}");
+        let e = radiosity::solve::exitance(&solved.mesh);
+        let delta = 0.01;
+        let scaled: Vec<[f64; 3]> = solved
+            .solution
+            .radiosity
+            .iter()
+            .zip(&e)
+            .map(|(b, e)| std::array::from_fn(|c| e[c] + (1.0 + delta) * (b[c] - e[c])))
+            .collect();
+        let got = measure.error(&report(scaled)).unwrap();
+        // f64 rounding over ~400 elements and 20 objects.
+        assert!((got - delta).abs() < 1e-12, "{got}");
     }
 
     #[test]
@@ -959,9 +1431,11 @@ mod tests {
         let limit = n * m * 4 + 30 * m * m;
         let c = run_with(&CompareOptions {
             memory_limit: limit,
+            hierarchical_solves: 0,
             ..Default::default()
         })
         .unwrap();
+        assert!(c.run(Method::Hierarchical).is_none() && c.hierarchical.is_empty());
         assert!(
             matches!(c.reference, Reference::GaussSeidel { residual, .. } if residual <= 1e-12),
             "{:?}",

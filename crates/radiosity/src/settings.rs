@@ -354,6 +354,17 @@ pub fn resolve(
     )? {
         settings.solve.hierarchical.epsilon = e;
     }
+    // `--elements N` with the hierarchical solver bounds its leaves: no element is
+    // subdivided below 1/N of the scene's total area, so subdivision makes at most N leaves
+    // (input polygons smaller than that stay whole). Only the flag: a scene file's
+    // `elements` sizes the classic mesh and would silently coarsen a hierarchical solve.
+    // N = 1 stops all subdivision (the fraction must stay below 1).
+    if let (Some(n), Some(_)) = (elements, flags.elements) {
+        if settings.solve.solve.solver == SolverKind::Hierarchical {
+            settings.solve.hierarchical.min_area_fraction =
+                (1.0 / n as f64).min(1.0 - f64::EPSILON);
+        }
+    }
     settings.solve.form_factor = form_factor.unwrap_or_default();
 
     if flags.adaptive {
@@ -552,5 +563,43 @@ mod tests {
             };
             assert!(resolve(None, &flags).is_err(), "tolerance {t}");
         }
+    }
+    #[test]
+    fn elements_flag_bounds_the_hierarchical_leaves() {
+        let default_fraction = SolveSettings::default().hierarchical.min_area_fraction;
+        let hierarchical = |elements: Option<i64>, file: Option<usize>| {
+            let file = SceneSettings {
+                elements: file,
+                ..Default::default()
+            };
+            let flags = Overrides {
+                elements,
+                solver: Some(SolverKind::Hierarchical),
+                ..Default::default()
+            };
+            resolve(Some((&file, "room.json")), &flags)
+                .unwrap()
+                .solve
+                .hierarchical
+                .min_area_fraction
+        };
+        // The flag sets the smallest element to 1/N of the total area.
+        assert_eq!(hierarchical(Some(2000), None), 1.0 / 2000.0);
+        assert_eq!(hierarchical(Some(2000), Some(500)), 1.0 / 2000.0);
+        // N = 1: no subdivision, and still a fraction the hierarchy accepts (below 1).
+        let one = hierarchical(Some(1), None);
+        assert!(one < 1.0 && one > 0.5, "{one}");
+        // Without the flag, or a scene file's count (meant for the classic mesh): the
+        // hierarchy's own default.
+        assert_eq!(hierarchical(None, None), default_fraction);
+        assert_eq!(hierarchical(None, Some(500)), default_fraction);
+        // Other solvers keep the default too (their meshes use the count).
+        let flags = Overrides {
+            elements: Some(2000),
+            ..Default::default()
+        };
+        let s = resolve(None, &flags).unwrap();
+        assert_eq!(s.solve.hierarchical.min_area_fraction, default_fraction);
+        assert_eq!(s.solve.mesh.elements, 2000);
     }
 }
