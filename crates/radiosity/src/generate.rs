@@ -88,8 +88,10 @@ const HEIGHT: f64 = 3.0;
 /// 2√N m side, each jittered and turned about the vertical so that none overlaps its
 /// neighbours; nine in ten are boxes (0.3–1.4 m wide, 0.2–2 m tall, five faces, standing
 /// on the floor) and one in ten a shelf unit (two side panels and three planks, 28 faces).
-/// Floor, walls and ceiling are single polygons facing in; square emitting panels
-/// (0.6 m, L = [`ROOM_PANEL_RADIANCE`] W·m⁻²·sr⁻¹) hang 1 cm below the ceiling every 4 m.
+/// Floor, walls and ceiling are single polygons facing in; square luminaires every 4 m: an
+/// emitting panel (0.6 m, L = [`ROOM_PANEL_RADIANCE`] W·m⁻²·sr⁻¹) facing down 5 cm below
+/// the ceiling, in a housing of four faces up to it, so the room is closed and no light
+/// falls on a back face.
 /// Every surface is a quad; the room has about 7.6 N quads (15 N triangles) plus the panels.
 pub fn furnished_room(objects: usize, seed: u64) -> Scene {
     let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(seed);
@@ -159,16 +161,19 @@ pub fn furnished_room(objects: usize, seed: u64) -> Scene {
         1,
         [p(s, 0., 0.), p(s, 0., s), p(s, h, s), p(s, h, 0.)],
     );
-    // Ceiling panels, facing down.
+    // Ceiling luminaires: an emitting panel facing down, 5 cm below the ceiling, in a
+    // housing of four side faces up to the ceiling (no light is lost on the panel's back).
     let panels = ((side / PANEL_SPACING).round() as usize).max(1);
     let pitch = side / panels as f64;
-    let y = h - 0.01;
+    let drop = 0.05;
     let a = 0.5 * PANEL_SIDE;
     for i in 0..panels {
         for j in 0..panels {
             let (cx, cz) = ((i as f64 + 0.5) * pitch, (j as f64 + 0.5) * pitch);
+            let name = format!("panel_{i}_{j}");
+            let y = h - drop;
             add(
-                &format!("panel_{i}_{j}"),
+                &name,
                 3,
                 [
                     p(cx - a, y, cz - a),
@@ -177,6 +182,21 @@ pub fn furnished_room(objects: usize, seed: u64) -> Scene {
                     p(cx - a, y, cz + a),
                 ],
             );
+            let lo = p(cx - a, y, cz - a);
+            let housing = |add: &mut dyn FnMut(&str, u32, [DVec3; 4])| {
+                let c = [
+                    lo,
+                    lo + DVec3::X * PANEL_SIDE,
+                    lo + DVec3::new(PANEL_SIDE, 0.0, PANEL_SIDE),
+                    lo + DVec3::Z * PANEL_SIDE,
+                ];
+                let up = DVec3::Y * drop;
+                for k in 0..4 {
+                    let (p0, q0) = (c[(k + 1) % 4], c[k]);
+                    add(&name, 2, [p0, q0, q0 + up, p0 + up]);
+                }
+            };
+            housing(&mut add);
         }
     }
     // Furniture, one piece per grid cell in row order.

@@ -914,7 +914,7 @@ impl Hierarchical {
         };
         // A wide receiving cluster opens: spread uniformly, its members facing the source
         // and those facing away would read the same irradiance.
-        if gap <= 0.0 || open_p {
+        if gap <= 0.0 {
             return must;
         }
         // Of the power leaving q, at most A_p/(π gap²) of it can reach p: the bound on the
