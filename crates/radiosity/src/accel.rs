@@ -962,7 +962,8 @@ impl Visibility {
         Self::from_polygons(mesh.surface_polygons.iter().map(|p| p.vertices()), diameter)
     }
 
-    /// Builds the BVH over arbitrary opaque convex polygons (fan-triangulated), e.g. the
+    /// Builds the BVH over arbitrary opaque convex polygons (fan-triangulated; polygons of
+    /// many vertices by [`crate::geometry::balanced_triangles`]), e.g. the
     /// occluders of a [`pair::PairProblem`]; ray ends are lifted by 1e-5 × `diameter`, the
     /// size of the whole configuration in metres.
     pub fn from_polygons<'p>(
@@ -972,6 +973,15 @@ impl Visibility {
         let mut tris = Vec::new();
         let mut triangle_polygon = Vec::new();
         for (i, p) in polygons.into_iter().enumerate() {
+            if p.len() >= crate::mesh::grid::GRID_MIN_VERTICES {
+                // A polygon of many vertices by chords in halves, not by its fan: the fan's
+                // n slivers from vertex 0 all overlap, and every query near them met all.
+                for [a, b, c] in crate::geometry::balanced_triangles(p.len()) {
+                    tris.push([p[a].as_vec3(), p[b].as_vec3(), p[c].as_vec3()]);
+                    triangle_polygon.push(i as u32);
+                }
+                continue;
+            }
             for w in p[1..].windows(2) {
                 tris.push([p[0].as_vec3(), w[0].as_vec3(), w[1].as_vec3()]);
                 triangle_polygon.push(i as u32);

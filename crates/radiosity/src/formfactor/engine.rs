@@ -176,8 +176,12 @@ fn clearance(mesh: &Mesh, visibility: &Visibility, element: usize, limit: f64) -
     }
 }
 
-/// Largest distance between two corners, m.
+/// Largest distance between two corners, m: all pairs for the triangles and quads, rotating
+/// calipers ([`crate::geometry::Polygon::diameter`]) for a cell of many corners.
 fn diameter(corners: &[glam::DVec3]) -> f64 {
+    if corners.len() > 8 {
+        return crate::geometry::Polygon::new_unchecked(corners.to_vec()).diameter();
+    }
     let mut size: f64 = 0.0;
     for i in 0..corners.len() {
         for j in i + 1..corners.len() {

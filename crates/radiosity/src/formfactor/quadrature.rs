@@ -32,7 +32,11 @@ pub fn gauss_legendre(n: usize) -> Vec<(f64, f64)> {
 }
 
 /// `n × n` points with weights summing to 1 over a convex triangle or quad; `n = 1` gives
-/// the centroid.
+/// the centroid. A polygon of more corners (a cell along the outline of a polygon of many
+/// vertices, [`crate::mesh::grid`]) by the rule on each triangle of its fan, weighted by the
+/// triangle's area: exact tiling, (corners − 2)·n² points (only elements near another
+/// surface get n > 1, and a polygon's vertices fall in one or two of its cells each, so
+/// the points of a whole mesh stay linear in its vertex count).
 pub fn element_points(corners: &[DVec3], centroid: DVec3, n: usize, out: &mut Vec<(DVec3, f64)>) {
     out.clear();
     if n <= 1 {
@@ -59,14 +63,32 @@ pub fn element_points(corners: &[DVec3], centroid: DVec3, n: usize, out: &mut Ve
             }
             out.iter_mut().for_each(|(_, w)| *w /= total);
         }
+        3 => triangle_points(&rule, [corners[0], corners[1], corners[2]], 1.0, out),
         _ => {
-            // Triangle (a, b, c): p = a + u (b − a) + u v (c − b), Jacobian ∝ u.
-            let [a, b, c] = [corners[0], corners[1], corners[2]];
-            for &(u, wu) in &rule {
-                for &(v, wv) in &rule {
-                    out.push((a + u * (b - a) + u * v * (c - b), 2.0 * wu * wv * u));
-                }
+            let fan = |w: &[DVec3]| 0.5 * (w[0] - corners[0]).cross(w[1] - corners[0]).length();
+            let total: f64 = corners[1..].windows(2).map(fan).sum();
+            if total.is_nan() || total <= 0.0 {
+                out.push((centroid, 1.0));
+                return;
             }
+            for w in corners[1..].windows(2) {
+                triangle_points(&rule, [corners[0], w[0], w[1]], fan(w) / total, out);
+            }
+        }
+    }
+}
+
+/// The Gauss rule over the triangle (a, b, c), weights summing to `share`: the collapsed
+/// square p = a + u (b − a) + u v (c − b), Jacobian ∝ u.
+fn triangle_points(
+    rule: &[(f64, f64)],
+    [a, b, c]: [DVec3; 3],
+    share: f64,
+    out: &mut Vec<(DVec3, f64)>,
+) {
+    for &(u, wu) in rule {
+        for &(v, wv) in rule {
+            out.push((a + u * (b - a) + u * v * (c - b), share * 2.0 * wu * wv * u));
         }
     }
 }
@@ -84,6 +106,37 @@ mod tests {
                 assert!((s - 1.0 / (k as f64 + 1.0)).abs() < 1e-13, "n={n} k={k}");
             }
         }
+    }
+
+    #[test]
+    fn many_cornered_cells_get_points_inside_with_their_centroid() {
+        // The unit square cell [0, 1]² clipped by a disc of radius 1.2 about the origin drawn
+        // with 400 corners on the arc: a cell on the outline of a disc.
+        let r: f64 = 1.2;
+        let h = (r * r - 1.0).sqrt();
+        let (a0, a1) = (h.atan2(1.0), 1f64.atan2(h));
+        let mut cell = vec![DVec3::ZERO, DVec3::X];
+        for k in 0..=400 {
+            let a = a0 + (a1 - a0) * k as f64 / 400.0;
+            cell.push(DVec3::new(r * a.cos(), r * a.sin(), 0.0));
+        }
+        cell.push(DVec3::Y);
+        let mut pts = Vec::new();
+        let centroid = crate::formfactor::kernel::polygon_centroid(&cell);
+        element_points(&cell, centroid, 3, &mut pts);
+        assert_eq!(pts.len(), (cell.len() - 2) * 9);
+        let sum_w: f64 = pts.iter().map(|p| p.1).sum();
+        assert!((sum_w - 1.0).abs() < 1e-13);
+        for (p, _) in &pts {
+            assert!(p.x >= 0.0 && p.x <= 1.0 && p.y >= 0.0 && p.y <= 1.0 && p.length() <= r);
+        }
+        // The rule integrates linear functions exactly on each fan triangle, so the mean
+        // point is the centroid to rounding.
+        let mean: DVec3 = pts.iter().map(|p| p.0 * p.1).sum();
+        assert!(
+            (mean - centroid).length() < 1e-12,
+            "{mean} against {centroid}"
+        );
     }
 
     #[test]

@@ -136,6 +136,55 @@ pub fn clip_to_halfspace(vertices: &[DVec3], origin: DVec3, normal: DVec3) -> Op
     (out.len() >= 3).then_some(out)
 }
 
+/// Splits the convex loop `input` of plane points by the line `p[axis] = at` into the part
+/// with `p[axis] ≤ at` (`below`) and the part with `p[axis] ≥ at` (`above`), both cleared
+/// first; either may end with fewer than three vertices.
+///
+/// The two parts share their crossing vertices bit for bit, so that pieces cut from one
+/// polygon by a lattice of such lines weld into a mesh without cracks: a crossing is
+/// computed once for both sides, lies exactly on the line (its `axis` coordinate is `at`
+/// itself, not an interpolated value), and its other coordinate is interpolated from the
+/// edge's lesser endpoint (in the order of that coordinate), so that it does not depend on
+/// the direction a piece walks the edge either. An edge left on the line x = x_i by an earlier
+/// cut, cut by y = y_j, therefore gives the lattice point (x_i, y_j) exactly (interpolating
+/// between two equal values returns that value), whichever piece cuts it. Vertices on the
+/// line go to both parts.
+///
+/// O(n) for n vertices; cutting a polygon by k parallel lines in halves (bisection) costs
+/// O(n log k).
+pub fn split_convex(
+    input: &[[f64; 2]],
+    axis: usize,
+    at: f64,
+    below: &mut Vec<[f64; 2]>,
+    above: &mut Vec<[f64; 2]>,
+) {
+    below.clear();
+    above.clear();
+    let n = input.len();
+    let other = 1 - axis;
+    for i in 0..n {
+        let a = input[i];
+        let b = input[(i + 1) % n];
+        let (da, db) = (a[axis] - at, b[axis] - at);
+        if da <= 0.0 {
+            below.push(a);
+        }
+        if da >= 0.0 {
+            above.push(a);
+        }
+        if (da < 0.0 && db > 0.0) || (da > 0.0 && db < 0.0) {
+            let (lo, hi) = if a[other] <= b[other] { (a, b) } else { (b, a) };
+            let t = (at - lo[axis]) / (hi[axis] - lo[axis]);
+            let mut x = [0.0; 2];
+            x[axis] = at;
+            x[other] = lo[other] + (hi[other] - lo[other]) * t;
+            below.push(x);
+            above.push(x);
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

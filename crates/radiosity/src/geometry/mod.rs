@@ -11,7 +11,9 @@ pub mod clip;
 pub mod lattice;
 mod triangulate;
 
-pub use clip::{clip_convex, clip_to_halfspace, ClipOutput, ClipVertex, FixedPolygon};
+pub use clip::{
+    clip_convex, clip_to_halfspace, split_convex, ClipOutput, ClipVertex, FixedPolygon,
+};
 pub use lattice::{sub_areas, subdivide, Lattice};
 
 use glam::DVec3;
@@ -194,6 +196,34 @@ impl Polygon {
     pub fn clip_to_halfspace(&self, origin: DVec3, normal: DVec3) -> Option<Vec<DVec3>> {
         clip_to_halfspace(&self.vertices, origin, normal)
     }
+}
+
+/// Triangles (index triples, counter-clockwise like the loop) of a convex loop of `n`
+/// vertices, cut by chords in halves: the triangle (i, m, j) on a chord i–j with m halfway
+/// between, then the chains i…m and m…j the same way, from the chord 0–(n − 1).
+///
+/// The fan from vertex 0 has n − 2 triangles that all reach vertex 0, so the bounding boxes
+/// of a disc's fan all overlap one another near it, and a box or ray query there meets O(n)
+/// of them. Here triangles shrink towards the outline, each level of halving covers a thin
+/// band inside the previous one, and a point lies in the boxes of O(log n) of them. Still
+/// n − 2 triangles, the loop's edges all among their edges (so neighbouring polygons stay
+/// watertight for rays).
+pub fn balanced_triangles(n: usize) -> Vec<[usize; 3]> {
+    let mut out = Vec::with_capacity(n.saturating_sub(2));
+    if n < 3 {
+        return out;
+    }
+    let mut chords = vec![(0, n - 1)];
+    while let Some((i, j)) = chords.pop() {
+        if j - i < 2 {
+            continue;
+        }
+        let m = i + (j - i) / 2;
+        out.push([i, m, j]);
+        chords.push((m, j));
+        chords.push((i, m));
+    }
+    out
 }
 
 /// Newell's method: (unit normal, area) of a planar polygon loop.
@@ -391,6 +421,54 @@ fn ear_clip(vertices: Vec<DVec3>) -> Result<Vec<Polygon>, GeometryError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn balanced_triangles_tile_a_disc_and_few_boxes_overlap() {
+        let n = 1000;
+        let disc: Vec<DVec3> = (0..n)
+            .map(|k| {
+                let a = std::f64::consts::TAU * k as f64 / n as f64;
+                DVec3::new(a.cos(), a.sin(), 0.0)
+            })
+            .collect();
+        let tris = balanced_triangles(n);
+        assert_eq!(tris.len(), n - 2);
+        let area: f64 = tris
+            .iter()
+            .map(|t| 0.5 * (disc[t[1]] - disc[t[0]]).cross(disc[t[2]] - disc[t[0]]).z)
+            .sum();
+        // Every triangle counter-clockwise (a turned one would subtract): the sum is the
+        // polygon's area, (n/2) sin(2π/n), to rounding.
+        let exact = 0.5 * n as f64 * (std::f64::consts::TAU / n as f64).sin();
+        assert!((area - exact).abs() < 1e-12, "{area} against {exact}");
+        let mut edges = std::collections::HashSet::new();
+        for t in &tris {
+            assert!(t[0] < t[1] && t[1] < t[2]);
+            for (a, b) in [(t[0], t[1]), (t[1], t[2]), (t[0], t[2])] {
+                edges.insert((a, b));
+            }
+        }
+        assert!((0..n).all(|k| edges.contains(&(k.min((k + 1) % n), k.max((k + 1) % n)))));
+        // The fan's boxes all hold points near vertex 0's side; here any point is in the
+        // boxes of a few triangles per halving level (log₂ 1000 ≈ 10 levels).
+        for p in [
+            DVec3::ZERO,
+            DVec3::new(0.99, 0.0, 0.0),
+            DVec3::new(-0.5, 0.5, 0.0),
+        ] {
+            let holding = tris
+                .iter()
+                .filter(|t| {
+                    let (lo, hi) = t.iter().fold(
+                        (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+                        |(lo, hi), &k| (lo.min(disc[k]), hi.max(disc[k])),
+                    );
+                    p.x >= lo.x && p.x <= hi.x && p.y >= lo.y && p.y <= hi.y
+                })
+                .count();
+            assert!(holding <= 40, "{holding} boxes hold {p}");
+        }
+    }
 
     fn square() -> Vec<DVec3> {
         vec![

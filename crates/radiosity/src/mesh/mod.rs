@@ -6,9 +6,11 @@
 //! displayed. With `patch_subdivision = 1` every element is its own patch and the system is
 //! the plain element-to-element one.
 //!
-//! Quads are divided on a bilinear lattice, triangles (and the fan triangles of n-gons) on a
-//! barycentric lattice, so elements of one surface share their vertices: the display mesh has
-//! no cracks inside a surface.
+//! Quads are divided on a bilinear lattice, triangles (and the fan triangles of n-gons of up
+//! to eight vertices) on a barycentric lattice, so elements of one surface share their
+//! vertices: the display mesh has no cracks inside a surface. Polygons of more vertices are
+//! cut by a square lattice in their plane ([`grid`]): whole cells inside, clipped cells
+//! along the outline, as many as the element size asks for whatever the vertex count.
 //!
 //! Two-sided surfaces ([`crate::scene::Material::two_sided`]) are meshed once and then given
 //! a back-to-back twin: a second surface with the same elements, corners in reverse order
@@ -21,6 +23,7 @@
 //! the surface. The element budget (`elements`) counts both sides.
 
 pub mod contacts;
+pub mod grid;
 pub mod merge;
 pub mod refine;
 pub mod two_sided;
@@ -101,7 +104,8 @@ pub struct Element {
     pub surface: u32,
     /// The patch it belongs to.
     pub patch: PatchId,
-    /// Indices into [`Mesh::vertices`], counter-clockwise seen from the front (3 or 4).
+    /// Indices into [`Mesh::vertices`], counter-clockwise seen from the front (3 or 4; more
+    /// for the cells along the outline of a polygon of many vertices, [`grid`]).
     pub corners: Vec<u32>,
     /// Area centroid, m.
     pub centre: DVec3,
@@ -319,11 +323,21 @@ impl Mesh {
     /// Meshes one surface polygon: a quad on a bilinear lattice of `pu·ku × pv·kv` elements
     /// grouped `ku × kv` into patches; a triangle (or each fan triangle of an n-gon, all on
     /// one level so their shared diagonals conform) on a barycentric lattice of `(m·k)²`
-    /// elements grouped `k²` into `m²` patch triangles ([`Lattice`]).
+    /// elements grouped `k²` into `m²` patch triangles ([`Lattice`]); a polygon of many
+    /// vertices on a square lattice in its plane, `sub × sub` cells a patch ([`grid`]).
     fn mesh_surface(&mut self, surface: SurfaceId, polygon: &Polygon, size: f64, sub: u32) {
         let mut welder = Welder::default();
         let v = polygon.vertices();
-        if v.len() == 4 {
+        if grid::uses_grid(polygon) {
+            for block in grid::mesh_on_grid(polygon, size, sub) {
+                let first = self.elements.len() as u32;
+                let patch = PatchId(self.patches.len() as u32);
+                for cell in &block.elements {
+                    self.push_element(surface, patch, cell, &mut welder);
+                }
+                self.push_patch(surface, Polygon::new_unchecked(block.outline), first);
+            }
+        } else if v.len() == 4 {
             let len_u = v[0].distance(v[1]).max(v[3].distance(v[2]));
             let len_v = v[0].distance(v[3]).max(v[1].distance(v[2]));
             let (pu, ku) = split_count(len_u, size, sub);
@@ -537,6 +551,9 @@ fn triangle_level_length(polygon: &Polygon, size: f64) -> f64 {
 
 fn estimate_elements(polygon: &Polygon, size: f64) -> f64 {
     let v = polygon.vertices();
+    if grid::uses_grid(polygon) {
+        return grid::grid_count(polygon, size, 1);
+    }
     if v.len() == 4 {
         let lu = v[0].distance(v[1]).max(v[3].distance(v[2]));
         let lv = v[0].distance(v[3]).max(v[1].distance(v[2]));
@@ -556,7 +573,9 @@ fn size_for_count(polygons: &[&Polygon], count: usize) -> f64 {
             .iter()
             .map(|p| {
                 let v = p.vertices();
-                if v.len() == 4 {
+                if grid::uses_grid(p) {
+                    grid::grid_count(p, h, 1)
+                } else if v.len() == 4 {
                     let lu = v[0].distance(v[1]).max(v[3].distance(v[2]));
                     let lv = v[0].distance(v[3]).max(v[1].distance(v[2]));
                     ((lu / h).ceil().max(1.0)) * ((lv / h).ceil().max(1.0))
@@ -583,7 +602,8 @@ fn size_for_count(polygons: &[&Polygon], count: usize) -> f64 {
 }
 
 /// The number of elements [`Mesh::mesh_surface`] makes of `polygons` at element size
-/// `size` with `sub` elements per patch edge.
+/// `size` with `sub` elements per patch edge (estimated, [`grid::grid_count`], for polygons
+/// of many vertices).
 fn exact_count(polygons: &[&Polygon], size: f64, sub: u32) -> f64 {
     let pieces = |length: f64| {
         let (patches, per_patch) = split_count(length, size, sub);
@@ -593,7 +613,9 @@ fn exact_count(polygons: &[&Polygon], size: f64, sub: u32) -> f64 {
         .iter()
         .map(|p| {
             let v = p.vertices();
-            if v.len() == 4 {
+            if grid::uses_grid(p) {
+                grid::grid_count(p, size, sub)
+            } else if v.len() == 4 {
                 let lu = v[0].distance(v[1]).max(v[3].distance(v[2]));
                 let lv = v[0].distance(v[3]).max(v[1].distance(v[2]));
                 pieces(lu) * pieces(lv)

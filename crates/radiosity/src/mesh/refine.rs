@@ -149,7 +149,13 @@ pub fn refine(mesh: &Mesh, marked: &[bool]) -> Mesh {
             let p: Vec<DVec3> = e.corners.iter().map(|&c| vertices[c as usize]).collect();
             // Quads at edge midpoints and centre, triangles at edge midpoints: the lattice
             // of order 2, whose edge points are exact midpoints shared with neighbours.
-            let children = crate::geometry::subdivide(&p, 2);
+            // A cell of many corners (along the outline of a polygon of many vertices) is cut
+            // in four by the square grid of `sub_areas`, not into the slivers of its fan.
+            let children = if p.len() > 4 {
+                crate::geometry::sub_areas(&p, 2)
+            } else {
+                crate::geometry::subdivide(&p, 2)
+            };
             for child in children {
                 let polygon = crate::geometry::Polygon::new_unchecked(child.clone());
                 let corners = child
