@@ -1372,13 +1372,14 @@ mod tests {
         // 1.9 %, 1.2 %, 0.6 % off and the 400-element B* itself 0.9 %, which is why ε = 0.01
         // (0.96 % here) is left out: it is at the reference's own error, where the order of
         // two nearby values would be noise. Each halving must gain at least 10 % (measured
-        // 27 % and 41 %), and the series falls from clearly above the reference's 0.9 %
-        // (coarse links) to within 2 %, the per-polygon mark at the default ε.
+        // 27 % and 41 %; since wide receiving clusters link uniformly: 1.0 % at ε = 0.08, 0.53 %
+        // at 0.02),
+        // and the default ε lands within 2 %, the per-polygon mark.
         for w in c.hierarchical.windows(2) {
             assert!(w[1].error < 0.9 * w[0].error, "{w:?}");
         }
-        let (coarse, fine) = (c.hierarchical[0].error, c.hierarchical[2].error);
-        assert!(coarse > 0.015 && fine < 0.02, "{coarse} → {fine}");
+        let fine = c.hierarchical[2].error;
+        assert!(fine < 0.02, "{fine}");
     }
 
     #[test]

@@ -1,58 +1,18 @@
 //! Hierarchical radiosity against scene size: the Cornell box with every polygon tessellated
-//! into a k × k grid of triangle pairs (2k² triangles per quad; about 580, 2.3k, 9.2k and
-//! 37k input triangles), solved with `--solver hierarchical` at the default ε. The slope of
-//! time against input size is the method's scaling exponent (the goal: near-linear).
+//! ([`radiosity::generate::tessellated`]: 38 k² triangles, about 610, 2.4k, 9.7k and 39k),
+//! solved with `--solver hierarchical` at the default ε. The slope of time against input
+//! size is the method's scaling exponent (coplanar pieces merge back: flat). The larger
+//! sizes, furnished rooms and peak memory are in the `scale` bench.
 //!
 //! Run: `cargo bench -p radiosity --bench hierarchical`
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
-use glam::DVec3;
 use radiosity::cornell::cornell_box;
-use radiosity::geometry::Polygon;
+use radiosity::generate::tessellated;
 use radiosity::pipeline::{solve_scene, SolveSettings};
 use radiosity::progress::NoProgress;
-use radiosity::scene::{Scene, Surface};
 use radiosity::solve::{SolveOptions, SolverKind};
 use std::time::Duration;
-
-/// The scene with every quadrilateral cut into a k × k bilinear grid of triangle pairs
-/// (other polygons kept whole).
-fn tessellated(scene: &Scene, k: usize) -> Scene {
-    let mut surfaces = Vec::new();
-    for s in &scene.surfaces {
-        let v = s.polygon.vertices();
-        if v.len() != 4 {
-            surfaces.push(s.clone());
-            continue;
-        }
-        let at = |i: usize, j: usize| -> DVec3 {
-            let (u, w) = (i as f64 / k as f64, j as f64 / k as f64);
-            v[0] * (1.0 - u) * (1.0 - w)
-                + v[1] * u * (1.0 - w)
-                + v[2] * u * w
-                + v[3] * (1.0 - u) * w
-        };
-        for i in 0..k {
-            for j in 0..k {
-                for tri in [
-                    [at(i, j), at(i + 1, j), at(i + 1, j + 1)],
-                    [at(i, j), at(i + 1, j + 1), at(i, j + 1)],
-                ] {
-                    if let Ok(polygon) = Polygon::new(tri.to_vec()) {
-                        surfaces.push(Surface {
-                            polygon,
-                            ..s.clone()
-                        });
-                    }
-                }
-            }
-        }
-    }
-    Scene {
-        surfaces,
-        ..scene.clone()
-    }
-}
 
 fn hierarchical(c: &mut Criterion) {
     let mut g = c.benchmark_group("cornell_tessellated_hierarchical");

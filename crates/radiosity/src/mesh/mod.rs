@@ -184,6 +184,10 @@ impl Mesh {
         if !(1..=64).contains(&options.patch_subdivision) {
             return Err(MeshError::BadPatchSubdivision(options.patch_subdivision));
         }
+        // Coplanar neighbours of one object and material (a tessellated wall) mesh as the
+        // one convex polygon they make: the budget, not the modelling, sets the elements.
+        let (merged, original) = merge::merge_coplanar(scene);
+        let scene = &merged;
         let pieces = split_at_contacts(scene);
         let two_sided = |si: usize| scene.material(&scene.surfaces[si]).two_sided;
         // Both sides of a two-sided piece take their share of the element budget.
@@ -217,6 +221,11 @@ impl Mesh {
         }
 
         let objects = scene.object_names();
+        let object_index: std::collections::HashMap<&str, u32> = objects
+            .iter()
+            .enumerate()
+            .map(|(i, o)| (o.as_str(), i as u32))
+            .collect();
         let mut mesh = Mesh {
             vertices: Vec::new(),
             elements: Vec::new(),
@@ -231,13 +240,13 @@ impl Mesh {
         for (scene_surface, polygon) in pieces.iter() {
             let surface = &scene.surfaces[*scene_surface];
             let material = scene.material(surface);
-            let object = objects
-                .iter()
-                .position(|o| *o == surface.object)
-                .unwrap_or(0) as u32;
+            let object = object_index
+                .get(surface.object.as_str())
+                .copied()
+                .unwrap_or(0);
             mesh.surfaces.push(SurfaceData {
                 object,
-                scene_surface: *scene_surface as u32,
+                scene_surface: original[*scene_surface] as u32,
                 reflectance: material.reflectance,
                 exitance: material.exitance(),
             });

@@ -1468,16 +1468,14 @@ mod tests {
         h.remesh(&scene);
         let ones = vec![[1.0; 3]; h.mesh().elements.len()];
         let got = h.gather(&ones);
-        let (mut lo, mut hi, mut mean, mut area) = (f64::INFINITY, 0.0f64, 0.0, 0.0);
+        let (mut mean, mut area) = (0.0, 0.0);
         for (e, g) in h.mesh().elements.iter().zip(&got) {
-            lo = lo.min(g[0]);
-            hi = hi.max(g[0]);
             mean += g[0] * e.area;
             area += e.area;
         }
-        eprintln!("closure: min {lo} max {hi} mean {}", mean / area);
-        let max_dev = got.iter().map(|g| (g[0] - 1.0).abs()).fold(0.0, f64::max);
-        let _ = max_dev;
-        assert!((mean / area - 1.0).abs() < 1e-4);
+        // In a closed box every row of form factors sums to 1: with unit radiosity
+        // everywhere the area-weighted irradiance is 1 to the links' closure (1e-4 at
+        // ε = 4e-3; single edge elements stray further, see the README).
+        assert!((mean / area - 1.0).abs() < 1e-4, "{}", mean / area);
     }
 }
