@@ -1065,7 +1065,7 @@ impl Hierarchical {
     /// ([`crate::coupling::closure`]): R, the irradiance the leaf gathers when every
     /// surface has unit radiosity, is Σ F over all it sees; in a closed scene it must be 1
     /// (where it is within [`Enclosure::row_target`]'s bound of 1), in an open one at most
-    /// one. The link errors that ε allows add up along a leaf's row (edge elements of a
+    /// 1. The link errors that ε allows add up along a leaf's row (edge elements of a
     /// closed cube gathered up to 12 % too much); the leaf's gathered irradiance is scaled
     /// by R_target / R. For uniform emission and reflectance this makes B = E/(1 − ρ)
     /// exact up to the solver's tolerance.
