@@ -36,7 +36,6 @@
 pub mod tree;
 
 use crate::accel::Visibility;
-use crate::coupling::closure::Enclosure;
 use crate::coupling::Coupling;
 use crate::formfactor::analytic_point::{lambert_vector, point_to_polygon};
 use crate::formfactor::kernel::{Kernel, Receiver, SourcePolygon};
@@ -209,11 +208,6 @@ pub struct Hierarchical {
     /// Links accepted although their error exceeded the threshold (nothing left to split).
     pub forced: usize,
     form_factor_seconds: f64,
-    /// Whether light can leave the scene (probed once on the input polygons).
-    enclosure: Enclosure,
-    /// Per leaf: R_target / R, the factor that closes its row of the links (see
-    /// [`Hierarchical::close_rows`]).
-    row_scale: Vec<f64>,
 }
 
 /// What the oracle decided for a candidate link.
@@ -325,13 +319,10 @@ impl Hierarchical {
             capped: false,
             forced: 0,
             form_factor_seconds: 0.0,
-            enclosure: Enclosure::Open,
-            row_scale: Vec::new(),
             tree,
         };
         h.grow();
         h.rebuild_mesh(&objects, scene);
-        h.enclosure = Enclosure::probe(&h.mesh, &h.visibility);
         // Light sources (point, spot, goniometric) count as emitted power: their first shot
         // is part of the leaves' source term (see `rebuild_mesh`).
         for c in 0..3 {
@@ -1058,32 +1049,6 @@ impl Hierarchical {
         crate::direct::illuminate_with(&mut mesh, &scene.lights, &self.visibility);
         self.mesh = mesh;
         self.leaves = leaves;
-        self.close_rows();
-    }
-
-    /// Closes every leaf's row of the links, as the classic couplings do
-    /// ([`crate::coupling::closure`]): R, the irradiance the leaf gathers when every
-    /// surface has unit radiosity, is Σ F over all it sees; in a closed scene it must be 1
-    /// (where it is within [`Enclosure::row_target`]'s bound of 1), in an open one at most
-    /// 1. The link errors that ε allows add up along a leaf's row (edge elements of a
-    /// closed cube gathered up to 12 % too much); the leaf's gathered irradiance is scaled
-    /// by R_target / R. For uniform emission and reflectance this makes B = E/(1 − ρ)
-    /// exact up to the solver's tolerance.
-    fn close_rows(&mut self) {
-        let ones = vec![[1.0; 3]; self.leaves.len()];
-        let state = pull_state(&self.tree, &self.leaves, &ones);
-        let rows = self.push(&gather_with(&self.links, &state));
-        self.row_scale = rows
-            .iter()
-            .map(|r| {
-                let r = r[0];
-                if r > 0.0 {
-                    self.enclosure.row_target(r) / r
-                } else {
-                    1.0
-                }
-            })
-            .collect();
     }
 
     /// After [`Hierarchical::refine`]: the leaf mesh of the refined hierarchy and, for each of
@@ -1239,11 +1204,7 @@ impl Coupling for Hierarchical {
     fn gather(&self, radiosity: &[[f64; 3]]) -> Vec<[f64; 3]> {
         let state = pull_state(&self.tree, &self.leaves, radiosity);
         let gathered = gather_with(&self.links, &state);
-        let mut h = self.push(&gathered);
-        for (h, k) in h.iter_mut().zip(&self.row_scale) {
-            *h = h.map(|x| x * k);
-        }
-        h
+        self.push(&gathered)
     }
 
     fn sources(&self) -> usize {
