@@ -149,3 +149,104 @@ fn luminaires_light_the_office_as_the_classic_solver_does() {
         }
     }
 }
+
+mod random_rooms {
+    use super::*;
+    use glam::DVec3;
+    use proptest::prelude::*;
+    use radiosity::geometry::Polygon;
+    use radiosity::scene::{Material, MaterialId, Surface};
+
+    /// A closed box w × h × d with inward faces, face `lamp` emitting 1 W·m⁻²·sr⁻¹ and
+    /// reflectances `rho` per face.
+    fn room(size: [f64; 3], lamp: usize, rho: [f64; 6]) -> Scene {
+        let [w, h, d] = size;
+        let p = |x: f64, y: f64, z: f64| DVec3::new(x, y, z);
+        let faces = [
+            (
+                "floor",
+                [p(0., 0., 0.), p(0., 0., d), p(w, 0., d), p(w, 0., 0.)],
+            ),
+            (
+                "ceiling",
+                [p(0., h, 0.), p(w, h, 0.), p(w, h, d), p(0., h, d)],
+            ),
+            (
+                "south",
+                [p(0., 0., 0.), p(w, 0., 0.), p(w, h, 0.), p(0., h, 0.)],
+            ),
+            (
+                "north",
+                [p(0., 0., d), p(0., h, d), p(w, h, d), p(w, 0., d)],
+            ),
+            (
+                "west",
+                [p(0., 0., 0.), p(0., h, 0.), p(0., h, d), p(0., 0., d)],
+            ),
+            ("east", [p(w, 0., 0.), p(w, 0., d), p(w, h, d), p(w, h, 0.)]),
+        ];
+        Scene {
+            name: "room".into(),
+            materials: (0..6)
+                .map(|i| {
+                    let e = if i == lamp { 1.0 } else { 0.0 };
+                    Material::new(format!("m{i}"), [rho[i]; 3], [e; 3])
+                })
+                .collect(),
+            surfaces: faces
+                .iter()
+                .enumerate()
+                .map(|(i, (name, v))| Surface {
+                    object: (*name).into(),
+                    group: String::new(),
+                    material: MaterialId(i as u32),
+                    polygon: Polygon::new(v.to_vec()).unwrap(),
+                    origin: Default::default(),
+                })
+                .collect(),
+            lights: Vec::new(),
+            camera: None,
+        }
+    }
+
+    proptest! {
+        // A fixed seed: the same 6 rooms on every run (plus the saved long-box case).
+        #![proptest_config(ProptestConfig {
+            cases: 6,
+            rng_seed: proptest::test_runner::RngSeed::Fixed(8),
+            ..ProptestConfig::default()
+        })]
+
+        /// Random closed boxes (aspect up to 1:4, any face the lamp, ρ 0.2–0.8 per face):
+        /// hierarchical at ε = 0.01 against the direct solve on a 2400-element mesh, per
+        /// face. Tolerance 1.5 %: each link carries at most ε = 1 % of its receiver's
+        /// irradiance and a face mean averages many links, plus the direct solve's own
+        /// discretisation error on a 2400-element box; measured worst 0.8 % (a long box lit
+        /// from an end face, kept in hierarchical.proptest-regressions: closing each leaf's
+        /// row of links by its unit-radiosity sum, tried this session, put that floor 6.7 %
+        /// high and was withdrawn).
+        #[test]
+        fn hierarchical_agrees_with_the_direct_solve(
+            w in 0.5f64..2.0, h in 0.5f64..2.0, d in 0.5f64..2.0,
+            lamp in 0usize..6,
+            rho in proptest::array::uniform6(0.2f64..0.8),
+        ) {
+            let scene = room([w, h, d], lamp, rho);
+            let (_, hr) = solve(&scene, &hierarchical(0.01));
+            let mut direct = SolveSettings {
+                solve: SolveOptions {
+                    solver: SolverKind::Direct,
+                    ..Default::default()
+                },
+                ..Default::default()
+            };
+            direct.mesh.elements = 2400;
+            let (_, dr) = solve(&scene, &direct);
+            for (a, b) in hr.objects.iter().zip(&dr.objects) {
+                prop_assert_eq!(&a.name, &b.name);
+                let rel = (a.radiosity[0] - b.radiosity[0]).abs() / b.radiosity[0];
+                prop_assert!(rel < 0.015, "{}: {} vs {}", a.name, a.radiosity[0], b.radiosity[0]);
+            }
+        }
+    }
+}
