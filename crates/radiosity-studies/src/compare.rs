@@ -281,14 +281,7 @@ impl ErrorMeasure {
             .zip(&reference)
             .map(|(a, b)| a * (b[0].abs() + b[1].abs() + b[2].abs()))
             .sum();
-        // Nothing reflected (e.g. no emitter or all black): fall back to the whole radiosity.
-        let denominator = if reflected > 0.0 {
-            reflected
-        } else if total > 0.0 {
-            total
-        } else {
-            1.0
-        };
+        let denominator = error_denominator(reflected, total);
         Self {
             reference,
             area,
@@ -340,14 +333,7 @@ impl ObjectMeasure {
             .iter()
             .map(|(_, a, b)| a * (b[0].abs() + b[1].abs() + b[2].abs()))
             .sum();
-        // As for the element measure: nothing reflected falls back to the whole radiosity.
-        let denominator = if reflected > 0.0 {
-            reflected
-        } else if total > 0.0 {
-            total
-        } else {
-            1.0
-        };
+        let denominator = error_denominator(reflected, total);
         Self {
             objects,
             denominator,
@@ -1120,6 +1106,18 @@ fn write_error(path: &Path, e: impl std::fmt::Display) -> CompareError {
     CompareError::Write {
         path: path.display().to_string(),
         message: e.to_string(),
+    }
+}
+
+/// The normaliser of the error measures: the reflected part Σ A |B − E|, or, when nothing
+/// is reflected (no emitter, or all black), the whole radiosity Σ A |B|, or 1.
+fn error_denominator(reflected: f64, total: f64) -> f64 {
+    if reflected > 0.0 {
+        reflected
+    } else if total > 0.0 {
+        total
+    } else {
+        1.0
     }
 }
 

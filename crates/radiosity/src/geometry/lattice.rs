@@ -158,20 +158,14 @@ pub fn sub_areas(vertices: &[DVec3], k: usize) -> Vec<Vec<DVec3>> {
         return subdivide(vertices, k);
     }
     let (normal, area) = newell(vertices);
-    let origin = vertices[0];
-    let u = (vertices[1] - origin).normalize();
-    let w = normal.cross(u);
-    let flat: Vec<[f64; 2]> = vertices
-        .iter()
-        .map(|v| [(*v - origin).dot(u), (*v - origin).dot(w)])
-        .collect();
-    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-    for p in &flat {
-        for a in 0..2 {
-            lo[a] = lo[a].min(p[a]);
-            hi[a] = hi[a].max(p[a]);
-        }
-    }
+    let PlaneFrame {
+        origin,
+        u,
+        w,
+        flat,
+        lo,
+        hi,
+    } = PlaneFrame::new(vertices, normal);
     let side = area.sqrt() / k as f64;
     let cells = |a: usize| (((hi[a] - lo[a]) / side).ceil() as usize).max(1);
     let (nu, nw) = (cells(0), cells(1));
@@ -205,6 +199,51 @@ pub fn sub_areas(vertices: &[DVec3], k: usize) -> Vec<Vec<DVec3>> {
         }
     }
     out
+}
+
+/// A convex polygon's plane frame: vertex 0 as origin, its first edge as the first axis u,
+/// normal × u as the second w (so the loop stays counter-clockwise), the loop in those
+/// coordinates and its bounding box there.
+pub(crate) struct PlaneFrame {
+    pub origin: DVec3,
+    pub u: DVec3,
+    pub w: DVec3,
+    pub flat: Vec<[f64; 2]>,
+    pub lo: [f64; 2],
+    pub hi: [f64; 2],
+}
+
+impl PlaneFrame {
+    /// The frame of `vertices` (at least two) with unit normal `normal`.
+    pub fn new(vertices: &[DVec3], normal: DVec3) -> Self {
+        let origin = vertices[0];
+        let u = (vertices[1] - origin).normalize();
+        let w = normal.cross(u);
+        let flat: Vec<[f64; 2]> = vertices
+            .iter()
+            .map(|v| [(*v - origin).dot(u), (*v - origin).dot(w)])
+            .collect();
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for p in &flat {
+            for a in 0..2 {
+                lo[a] = lo[a].min(p[a]);
+                hi[a] = hi[a].max(p[a]);
+            }
+        }
+        Self {
+            origin,
+            u,
+            w,
+            flat,
+            lo,
+            hi,
+        }
+    }
+
+    /// The point at plane coordinates `p`.
+    pub fn point(&self, p: [f64; 2]) -> DVec3 {
+        self.origin + self.u * p[0] + self.w * p[1]
+    }
 }
 
 #[cfg(test)]

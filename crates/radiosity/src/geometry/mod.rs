@@ -14,6 +14,7 @@ mod triangulate;
 pub use clip::{
     clip_convex, clip_to_halfspace, split_convex, ClipOutput, ClipVertex, FixedPolygon,
 };
+pub(crate) use lattice::PlaneFrame;
 pub use lattice::{sub_areas, subdivide, Lattice};
 
 use glam::DVec3;

@@ -19,7 +19,7 @@
 //! pentagons and hexagons that surfaces split at contacts become) keep their lattice or fan
 //! meshes ([`super::Mesh`]).
 
-use crate::geometry::{split_convex, Polygon};
+use crate::geometry::{split_convex, PlaneFrame, Polygon};
 use glam::DVec3;
 
 /// Polygons with at least this many vertices are meshed on the square lattice; smaller ones
@@ -30,49 +30,6 @@ pub const GRID_MIN_VERTICES: usize = 9;
 /// Whether `polygon` is meshed on the square lattice.
 pub fn uses_grid(polygon: &Polygon) -> bool {
     polygon.vertices().len() >= GRID_MIN_VERTICES
-}
-
-/// The polygon's plane frame: vertex 0 as origin, its first edge as the first axis, the
-/// normal × that as the second (so the loop stays counter-clockwise), and the loop in it.
-struct Frame {
-    origin: DVec3,
-    u: DVec3,
-    w: DVec3,
-    flat: Vec<[f64; 2]>,
-    lo: [f64; 2],
-    hi: [f64; 2],
-}
-
-impl Frame {
-    fn new(polygon: &Polygon) -> Self {
-        let v = polygon.vertices();
-        let origin = v[0];
-        let u = (v[1] - origin).normalize();
-        let w = polygon.normal().cross(u).normalize();
-        let flat: Vec<[f64; 2]> = v
-            .iter()
-            .map(|p| [(*p - origin).dot(u), (*p - origin).dot(w)])
-            .collect();
-        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-        for p in &flat {
-            for a in 0..2 {
-                lo[a] = lo[a].min(p[a]);
-                hi[a] = hi[a].max(p[a]);
-            }
-        }
-        Frame {
-            origin,
-            u,
-            w,
-            flat,
-            lo,
-            hi,
-        }
-    }
-
-    fn point(&self, p: [f64; 2]) -> DVec3 {
-        self.origin + self.u * p[0] + self.w * p[1]
-    }
 }
 
 /// Cells per axis of the lattice over a bounding box side of `length` m: `(patches,
@@ -86,7 +43,7 @@ fn axis_cells(length: f64, size: f64, sub: u32) -> (u32, u32) {
 /// crosses each column and each row in two cells, which the area counts about half of),
 /// at most every cell of the bounding box.
 pub fn grid_count(polygon: &Polygon, size: f64, sub: u32) -> f64 {
-    let frame = Frame::new(polygon);
+    let frame = PlaneFrame::new(polygon.vertices(), polygon.normal());
     let (lu, lw) = (frame.hi[0] - frame.lo[0], frame.hi[1] - frame.lo[1]);
     let (pu, ku) = axis_cells(lu, size, sub);
     let (pw, kw) = axis_cells(lw, size, sub);
@@ -108,7 +65,7 @@ pub struct GridPatch {
 /// box in its plane, `sub` × `sub` cells a patch, as for a quad). Pieces of less than 10⁻¹²
 /// of a cell (a vertex or an edge grazing a lattice line) are dropped.
 pub fn mesh_on_grid(polygon: &Polygon, size: f64, sub: u32) -> Vec<GridPatch> {
-    let frame = Frame::new(polygon);
+    let frame = PlaneFrame::new(polygon.vertices(), polygon.normal());
     let (lo, hi) = (frame.lo, frame.hi);
     let (pu, ku) = axis_cells(hi[0] - lo[0], size, sub);
     let (pw, kw) = axis_cells(hi[1] - lo[1], size, sub);
