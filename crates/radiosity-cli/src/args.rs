@@ -60,7 +60,7 @@ pub struct SolveArgs {
     pub max_element_size: Option<f64>,
     /// Approximate total number of elements [default: 4000]. With --solver hierarchical: no
     /// element is subdivided below 1/N of the total surface area, so subdivision makes at
-    /// most N leaves (input polygons smaller than that stay whole) [default there: 100000].
+    /// most N leaves (input polygons smaller than that stay whole) [default there: 33333].
     #[arg(long, value_name = "N", allow_hyphen_values = true)]
     pub elements: Option<i64>,
     /// Elements per patch edge: patches shoot, elements receive (1 = every element shoots)

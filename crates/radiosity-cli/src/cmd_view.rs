@@ -299,6 +299,7 @@ impl Live {
                     mesh,
                     solution,
                     form_factor: solve.form_factor,
+                    hierarchy: None,
                 })
             }
             (None, Some(refine)) => {

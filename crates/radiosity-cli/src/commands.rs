@@ -168,6 +168,19 @@ pub(crate) fn run_solve(scene: &Scene, settings: &Settings, args: &SolveArgs) ->
             st.seconds,
             st.form_factor_seconds,
         );
+        if let Some(h) = &solved.hierarchy {
+            eprintln!(
+                "hierarchy: {} links, {} nodes, link tolerance ε {}",
+                h.links, h.nodes, h.epsilon
+            );
+            if h.capped {
+                eprintln!(
+                    "warning: link refinement stopped at the memory limit, so some links are \
+                     coarser than ε {}: the result is less accurate than asked",
+                    h.epsilon
+                );
+            }
+        }
     }
     Ok(solved)
 }

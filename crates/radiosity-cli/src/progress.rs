@@ -73,14 +73,25 @@ impl Progress for Bars {
         if !self.enabled {
             return;
         }
-        let bar = ProgressBar::with_draw_target(Some(total), ProgressDrawTarget::stderr());
-        bar.set_style(
-            ProgressStyle::with_template(
+        // A stage whose amount of work is not known ahead (total 0) shows a spinner and
+        // its count, with no ETA rather than a wrong one.
+        let (length, template) = if total == 0 {
+            (None, "{prefix:>14} {spinner} {pos} {msg} ({elapsed})")
+        } else {
+            (
+                Some(total),
                 "{prefix:>14} [{bar:30}] {pos}/{len} {msg} ({elapsed}, eta {eta})",
             )
-            .unwrap_or_else(|_| ProgressStyle::default_bar())
-            .progress_chars("=> "),
+        };
+        let bar = ProgressBar::with_draw_target(length, ProgressDrawTarget::stderr());
+        bar.set_style(
+            ProgressStyle::with_template(template)
+                .unwrap_or_else(|_| ProgressStyle::default_bar())
+                .progress_chars("=> "),
         );
+        if total == 0 {
+            bar.enable_steady_tick(std::time::Duration::from_millis(200));
+        }
         bar.set_prefix(stage.to_string());
         if let Ok(mut slot) = self.stage.lock() {
             *slot = Some(Stage {
@@ -111,11 +122,17 @@ impl Progress for Bars {
         if let Ok(mut slot) = self.stage.lock() {
             if let Some(s) = slot.take() {
                 s.bar.finish_and_clear();
+                let message = s.bar.message();
                 eprintln!(
-                    "{:>14}: {} in {:.2} s",
+                    "{:>14}: {} in {:.2} s{}",
                     s.name,
                     s.bar.position(),
-                    s.started.elapsed().as_secs_f64()
+                    s.started.elapsed().as_secs_f64(),
+                    if s.bar.length().is_none() && !message.is_empty() {
+                        format!(" ({message})")
+                    } else {
+                        String::new()
+                    }
                 );
             }
         }

@@ -353,3 +353,43 @@ fn elements_bound_the_hierarchical_leaves() {
     );
     assert!(bounded < free, "{bounded} with the bound, {free} without");
 }
+
+#[test]
+fn hierarchical_summary_shows_the_links_and_the_tolerance() {
+    // The summary of a hierarchical solve says how big the hierarchy got and to which ε it
+    // was refined (the classic solvers' summary has no such line).
+    let d = tmp();
+    let report = d.path().join("r.json");
+    let o = run(&[
+        "solve",
+        "--solver",
+        "hierarchical",
+        "--epsilon",
+        "0.05",
+        "--report",
+        report.to_str().unwrap(),
+        "--force",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let err = stderr(&o);
+    let line = err
+        .lines()
+        .find(|l| l.starts_with("hierarchy: "))
+        .unwrap_or_else(|| panic!("no hierarchy line: {err}"));
+    let links: usize = line
+        .trim_start_matches("hierarchy: ")
+        .split(' ')
+        .next()
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("{line}"));
+    // Light reaches the box's surfaces over links, a few per leaf (about 9 on this box).
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    let leaves = r["totals"]["elements"].as_u64().unwrap() as usize;
+    assert!(
+        links > leaves && links < 100 * leaves,
+        "{links} links, {leaves} leaves"
+    );
+    assert!(line.ends_with("link tolerance ε 0.05"), "{line}");
+    assert!(!err.contains("memory limit"), "{err}");
+}

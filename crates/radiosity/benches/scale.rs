@@ -69,6 +69,7 @@ fn child(family: &str, size: usize) {
             ..Default::default()
         },
         &mut NoObserver,
+        &radiosity::progress::NoProgress,
     )
     .expect("solve");
     let seconds = started.elapsed().as_secs_f64();

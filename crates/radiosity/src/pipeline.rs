@@ -36,6 +36,21 @@ pub struct Solved {
     pub solution: Solution,
     /// The form-factor method used.
     pub form_factor: FormFactorMethod,
+    /// What the hierarchical solver built (`None` for the classic solvers).
+    pub hierarchy: Option<HierarchyStats>,
+}
+
+/// The size of a hierarchical solution.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HierarchyStats {
+    /// The link tolerance ε it was refined to.
+    pub epsilon: f64,
+    /// Links at the end.
+    pub links: usize,
+    /// Nodes of the hierarchy (clusters, polygons and their sub-elements).
+    pub nodes: usize,
+    /// Whether refinement stopped at the memory limit (the links are then coarser than ε).
+    pub capped: bool,
 }
 
 /// Why solving failed.
@@ -81,11 +96,18 @@ pub fn solve_scene_observed(
             settings.hierarchical,
             &settings.solve,
             observer,
+            progress,
         )?;
         return Ok(Solved {
             mesh: solved.mesh,
             solution: solved.solution,
             form_factor: settings.form_factor,
+            hierarchy: Some(HierarchyStats {
+                epsilon: settings.hierarchical.epsilon,
+                links: solved.links,
+                nodes: solved.nodes,
+                capped: solved.capped,
+            }),
         });
     }
     let mut mesh = Mesh::build(scene, &settings.mesh)?;
@@ -95,6 +117,7 @@ pub fn solve_scene_observed(
         mesh,
         solution,
         form_factor: settings.form_factor,
+        hierarchy: None,
     })
 }
 
@@ -196,6 +219,7 @@ pub fn solve_scene_adaptive_observed(
                 mesh,
                 solution,
                 form_factor: settings.form_factor,
+                hierarchy: None,
             });
         }
         mesh = crate::mesh::refine::refine(&mesh, &marked);

@@ -113,6 +113,74 @@ fn one_and_two_threads_give_the_same_bits() {
     }
 }
 
+/// Records what a solve reports to its progress display.
+#[derive(Default)]
+struct Recorder {
+    events: std::sync::Mutex<Vec<String>>,
+    examined: std::sync::atomic::AtomicU64,
+}
+
+impl radiosity::progress::Progress for Recorder {
+    fn start(&self, stage: &str, total: u64) {
+        self.events
+            .lock()
+            .unwrap()
+            .push(format!("start {stage} {total}"));
+    }
+    fn inc(&self, n: u64) {
+        self.examined
+            .fetch_add(n, std::sync::atomic::Ordering::Relaxed);
+    }
+    fn message(&self, text: &str) {
+        self.events.lock().unwrap().push(format!("message {text}"));
+    }
+    fn finish(&self) {
+        self.events.lock().unwrap().push("finish".into());
+    }
+}
+
+#[test]
+fn linking_is_shown_stage_by_stage_with_the_links_kept() {
+    // The refinement (most of a large scene's time) reports each of its five stages as a
+    // "linking" stage without a total (its work is not known ahead, so no ETA is claimed),
+    // with the count of candidate links examined and the links kept; the last message
+    // carries the final link count.
+    let recorder = Recorder::default();
+    let solved = solve_scene(&cornell_box(), &hierarchical(0.05), &recorder).unwrap();
+    let events = recorder.events.into_inner().unwrap();
+    let starts: Vec<&String> = events.iter().filter(|e| e.starts_with("start")).collect();
+    assert_eq!(starts.len(), 5, "{starts:?}");
+    assert!(starts.iter().all(|e| *e == "start linking 0"), "{starts:?}");
+    assert_eq!(events.iter().filter(|e| *e == "finish").count(), 5);
+    let last = events
+        .iter()
+        .rev()
+        .find(|e| e.starts_with("message"))
+        .unwrap();
+    assert!(last.contains("stage 5 of 5, ε 0.050"), "{last}");
+    let links: usize = last
+        .split(", ")
+        .last()
+        .and_then(|t| t.strip_suffix(" links kept"))
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("{last}"));
+    // The links kept at the end of the last round are the solution's links; at least one
+    // candidate was examined per link.
+    let mesh_links = radiosity::solve::hierarchical::solve(
+        &cornell_box(),
+        radiosity::formfactor::FormFactorMethod::Raycast,
+        hierarchical(0.05).hierarchical,
+        &hierarchical(0.05).solve,
+        &mut radiosity::solve::NoObserver,
+        &NoProgress,
+    )
+    .unwrap()
+    .links;
+    assert_eq!(links, mesh_links);
+    assert!(recorder.examined.into_inner() >= links as u64);
+    assert!(!solved.mesh.elements.is_empty());
+}
+
 #[test]
 fn luminaires_light_the_office_as_the_classic_solver_does() {
     // The office example: four IES luminaires (no emitting polygons), so every watt reaches

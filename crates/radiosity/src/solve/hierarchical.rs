@@ -16,6 +16,7 @@ use crate::coupling::hierarchical::{Hierarchical, HierarchicalError, Hierarchica
 use crate::coupling::Coupling;
 use crate::formfactor::FormFactorMethod;
 use crate::mesh::Mesh;
+use crate::progress::Progress;
 use crate::scene::Scene;
 
 /// What the hierarchical solve produced.
@@ -37,13 +38,17 @@ pub struct HierarchicalSolution {
 /// Stages of the threshold schedule: 16 ε, 8 ε, 4 ε, 2 ε, ε.
 const STAGES: u32 = 5;
 
-/// Solves `scene` hierarchically with the form-factor kernel of `method`.
+/// Solves `scene` hierarchically with the form-factor kernel of `method`. The refinement of
+/// each stage is reported to `progress` as the stage "linking" with no total (how many
+/// candidate links a stage examines is not known ahead), its message the stage, ε and the
+/// links so far; the iterations go to `observer` as for the other solvers.
 pub fn solve(
     scene: &Scene,
     method: FormFactorMethod,
     hierarchy: HierarchicalOptions,
     options: &SolveOptions,
     observer: &mut dyn Observer,
+    progress: &dyn Progress,
 ) -> Result<HierarchicalSolution, HierarchicalError> {
     let mut h = Hierarchical::new(scene, method.kernel(), hierarchy)?;
     let mut b = exitance(h.mesh());
@@ -63,7 +68,14 @@ pub fn solve(
     };
     for stage in (0..STAGES).rev() {
         let epsilon = hierarchy.epsilon * f64::from(1u32 << stage);
-        h.refine(epsilon);
+        progress.start("linking", 0);
+        let label = format!("stage {} of {STAGES}, ε {epsilon:.3}", STAGES - stage);
+        progress.message(&label);
+        h.refine_reporting(epsilon, &mut |candidates, links| {
+            progress.inc(candidates as u64);
+            progress.message(&format!("{label}, {links} links kept"));
+        });
+        progress.finish();
         b = h.remesh(scene);
         // Intermediate stages only need radiosities good enough for the next refinement.
         let stage_options = SolveOptions {

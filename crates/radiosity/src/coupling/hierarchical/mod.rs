@@ -65,10 +65,16 @@ pub struct HierarchicalOptions {
 }
 
 impl Default for HierarchicalOptions {
+    /// ε = 0.02; elements down to 3·10⁻⁵ of the total area: below that, refinement mostly
+    /// follows the self-similar form factor along edges where surfaces meet (links there stay
+    /// over the tolerance at any depth). Measured: on the Cornell box 1/100000 took 1.4 s
+    /// and 1/30000 0.9 s for the same per-polygon error against Mitsuba (mean 1.5 %); a
+    /// furnished room of 30 objects took 239k and 167k links for the same error against the
+    /// classic solver on 26k elements (area-weighted mean 2.3 %).
     fn default() -> Self {
         Self {
             epsilon: 0.02,
-            min_area_fraction: 1e-5,
+            min_area_fraction: 3e-5,
             cluster_samples: 4,
             memory_limit: crate::solve::available_memory() / 2,
         }
@@ -415,6 +421,12 @@ impl Hierarchical {
     /// bright ones) is resolved to ε. Returns whether the hierarchy changed. The first call
     /// starts from the root's link to itself.
     pub fn refine(&mut self, epsilon: f64) -> bool {
+        self.refine_reporting(epsilon, &mut |_, _| {})
+    }
+
+    /// [`Hierarchical::refine`], calling `report(candidates, links)` after every round of
+    /// candidate links examined (the candidates of that round, the links accepted so far).
+    pub fn refine_reporting(&mut self, epsilon: f64, report: &mut dyn FnMut(usize, usize)) -> bool {
         let started = std::time::Instant::now();
         let leaves_before = self.tree.nodes.len();
         // Links to re-examine: every link whose error now exceeds the threshold.
@@ -485,6 +497,7 @@ impl Hierarchical {
             // Children inherit their parent's radiosity until the next solve.
             self.inherit_state(leaves_before);
             next.sort_unstable();
+            report(pending.len(), self.link_count());
             pending = next;
         }
         for l in &mut self.links {
@@ -917,9 +930,17 @@ impl Hierarchical {
         if gap <= 0.0 {
             return must;
         }
-        // Of the power leaving q, at most A_p/(π gap²) of it can reach p: the bound on the
-        // irradiance per unit source radiosity is A_q/(π gap²).
-        let bound = nq.area / (PI * gap * gap);
+        // The irradiance at any point of p per unit radiosity of q is at most
+        // P_q cos_p / (π gap²): every direction between the two bounding spheres lies within
+        // α = asin((r_p + r_q)/r) of the line of centres, so the source's projected area
+        // toward p is at most its bound P_q over that cone ([`tree::Node::projected_bound`]),
+        // and the cosine at the receiver at most that of its normal cone's nearest approach
+        // ([`cos_bound`]). (A_q/(π gap²) before: a cluster of boxes shows at most about a
+        // third of its area in any direction.)
+        let toward = (nq.centre - np.centre) / r;
+        let spread = ((np.radius + nq.radius) / r).min(1.0).asin();
+        let bound =
+            nq.projected_bound(-toward, spread) * cos_bound(np, toward, spread) / (PI * gap * gap);
         // The mean irradiance over p per unit radiosity of q, A_q · ⟨cos θ_y cos θ_x V/(π r²)⟩
         // over pairs of area-stratified sample points of both ends with their own normals
         // (one-sided: a member facing away neither emits nor receives). Unbiased where the
@@ -947,7 +968,9 @@ impl Hierarchical {
         let c = nq.area / PI * sum / pairs;
         Estimate {
             transfer: Some(Transfer::Uniform(c as f32)),
-            delta: bound,
+            // The sampled mean can exceed the bound where few samples land on members that
+            // all face p: the error is then at least what the link carries.
+            delta: bound.max(c),
             mean: c,
             ..must
         }
@@ -1114,6 +1137,22 @@ impl Estimate {
             must_open_p: false,
             must_open_q: false,
         }
+    }
+}
+
+/// The largest cosine between a normal in the normal cone of `node` and a direction within
+/// `spread` radians of the unit vector `toward` (1 where the two cones overlap).
+fn cos_bound(node: &tree::Node, toward: DVec3, spread: f64) -> f64 {
+    if node.cone_cos <= -1.0 {
+        return 1.0;
+    }
+    let apart = node.axis.dot(toward).clamp(-1.0, 1.0).acos()
+        - node.cone_cos.clamp(-1.0, 1.0).acos()
+        - spread;
+    if apart <= 0.0 {
+        1.0
+    } else {
+        apart.min(PI).cos().max(0.0)
     }
 }
 

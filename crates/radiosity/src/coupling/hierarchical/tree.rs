@@ -59,6 +59,10 @@ pub struct Node {
     pub area: f64,
     /// Σ A_i n_i over the node's polygons, m².
     pub vector_area: DVec3,
+    /// Σ A_i max(0, ±n_i · e_k) over the node's polygons for the axes e_k (x, y, z), m²:
+    /// `[+x, −x, +y, −y, +z, −z]`, the areas facing each way, for bounds of the projected
+    /// area (see [`Node::projected_bound`]).
+    pub facing: [f64; 6],
     /// Area centroid, m.
     pub centre: DVec3,
     /// Radius of a sphere about `centre` holding the node, m.
@@ -86,6 +90,39 @@ impl Node {
     pub fn children(&self) -> std::ops::Range<u32> {
         self.first_child..self.first_child + self.child_count
     }
+
+    /// An upper bound of the node's projected area Σ A_i max(0, n_i · w) (one-sided
+    /// polygons, m²) over all unit directions w within `spread` radians of the unit vector
+    /// `toward`: max(0, n · w) ≤ Σ_k |w_k| max(0, sign(w_k) n_k) over the axes k, where each
+    /// |w_k| is at most |toward_k| + 2 sin(spread/2) (the chord) and both signs count where
+    /// the chord reaches across zero; never more than the area.
+    pub fn projected_bound(&self, toward: DVec3, spread: f64) -> f64 {
+        let chord = 2.0 * (0.5 * spread.clamp(0.0, std::f64::consts::PI)).sin();
+        let mut sum = 0.0;
+        for k in 0..3 {
+            let (plus, minus) = (self.facing[2 * k], self.facing[2 * k + 1]);
+            let w = toward[k];
+            let facing = if w.abs() <= chord {
+                plus.max(minus)
+            } else if w > 0.0 {
+                plus
+            } else {
+                minus
+            };
+            sum += (w.abs() + chord) * facing;
+        }
+        sum.min(self.area)
+    }
+}
+
+/// The facing areas `[+x, −x, +y, −y, +z, −z]` of a polygon (see [`Node::facing`]).
+fn facing(normal: DVec3, area: f64) -> [f64; 6] {
+    let mut f = [0.0; 6];
+    for k in 0..3 {
+        f[2 * k] = area * normal[k].max(0.0);
+        f[2 * k + 1] = area * (-normal[k]).max(0.0);
+    }
+    f
 }
 
 /// The hierarchy: input polygons, the cluster tree over them, and their sub-elements.
@@ -230,6 +267,7 @@ impl Tree {
             leaves: (0, 0),
             area,
             vector_area: normal * area,
+            facing: facing(normal, area),
             centre,
             radius,
             axis: normal,
@@ -247,6 +285,12 @@ impl Tree {
             .collect();
         let area: f64 = children.iter().map(|c| c.area).sum();
         let vector_area: DVec3 = children.iter().map(|c| c.vector_area).sum();
+        let mut facing = [0.0; 6];
+        for c in &children {
+            for (f, g) in facing.iter_mut().zip(c.facing) {
+                *f += g;
+            }
+        }
         let centre = if area > 0.0 {
             children.iter().map(|c| c.centre * c.area).sum::<DVec3>() / area
         } else {
@@ -268,6 +312,7 @@ impl Tree {
         node.kind = Kind::Cluster;
         node.area = area;
         node.vector_area = vector_area;
+        node.facing = facing;
         node.centre = centre;
         node.radius = radius;
         node.axis = axis;
@@ -398,6 +443,7 @@ fn placeholder() -> Node {
         leaves: (0, 0),
         area: 0.0,
         vector_area: DVec3::ZERO,
+        facing: [0.0; 6],
         centre: DVec3::ZERO,
         radius: 0.0,
         axis: DVec3::Z,
@@ -594,4 +640,81 @@ fn partition<T: Copy>(items: &mut [T], left: impl Fn(&T) -> bool) -> usize {
     items[..l.len()].copy_from_slice(&l);
     items[l.len()..].copy_from_slice(&r);
     l.len()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+    use std::f64::consts::PI;
+
+    fn unit(theta: f64, phi: f64) -> DVec3 {
+        DVec3::new(
+            theta.sin() * phi.cos(),
+            theta.sin() * phi.sin(),
+            theta.cos(),
+        )
+    }
+
+    fn node_of(members: &[(DVec3, f64)]) -> Node {
+        let mut node = placeholder();
+        for &(n, area) in members {
+            for (f, g) in node.facing.iter_mut().zip(facing(n, area)) {
+                *f += g;
+            }
+            node.area += area;
+        }
+        node
+    }
+
+    #[test]
+    fn projected_bound_is_exact_for_a_box_seen_along_an_axis_or_a_diagonal() {
+        // A 1 × 2 × 3 box: faces ±x of area 6, ±y of 3, ±z of 2.
+        let faces = [
+            (DVec3::X, 6.0),
+            (-DVec3::X, 6.0),
+            (DVec3::Y, 3.0),
+            (-DVec3::Y, 3.0),
+            (DVec3::Z, 2.0),
+            (-DVec3::Z, 2.0),
+        ];
+        let node = node_of(&faces);
+        assert!((node.projected_bound(DVec3::X, 0.0) - 6.0).abs() < 1e-12);
+        assert!((node.projected_bound(-DVec3::Z, 0.0) - 2.0).abs() < 1e-12);
+        // Seen along (1, 1, 1)/√3 a box shows three faces: (6 + 3 + 2)/√3.
+        let w = DVec3::ONE.normalize();
+        let exact = 11.0 / 3f64.sqrt();
+        assert!((node.projected_bound(w, 0.0) - exact).abs() < 1e-12);
+        // Never more than the area, however wide the cone.
+        assert!(node.projected_bound(w, PI) <= node.area);
+    }
+
+    proptest! {
+        /// For any set of one-sided polygons and any cone of directions, the bound is at
+        /// least the projected area Σ A_i max(0, n_i · w) at every direction w of the cone
+        /// (checked on five rings from the axis to the rim, 16 directions each).
+        #[test]
+        fn projected_bound_bounds_every_direction_of_the_cone(
+            members in proptest::collection::vec((0.0..PI, 0.0..2.0 * PI, 0.01f64..2.0), 1..12),
+            axis in (0.0..PI, 0.0..2.0 * PI),
+            spread in 0.0..1.5f64,
+        ) {
+            let members: Vec<(DVec3, f64)> =
+                members.iter().map(|&(t, f, a)| (unit(t, f), a)).collect();
+            let node = node_of(&members);
+            let toward = unit(axis.0, axis.1);
+            let bound = node.projected_bound(toward, spread);
+            let (u, v) = toward.any_orthonormal_pair();
+            for ring in 0..=4 {
+                let angle = spread * ring as f64 / 4.0;
+                for k in 0..16 {
+                    let phi = 2.0 * PI * k as f64 / 16.0;
+                    let w = toward * angle.cos() + (u * phi.cos() + v * phi.sin()) * angle.sin();
+                    let projected: f64 =
+                        members.iter().map(|&(n, a)| a * n.dot(w).max(0.0)).sum();
+                    prop_assert!(projected <= bound * (1.0 + 1e-12) + 1e-12);
+                }
+            }
+        }
+    }
 }
