@@ -33,9 +33,11 @@
 //! The leaves (input polygons and their sub-elements) form the mesh that the solution,
 //! display and exports use.
 
+mod closure;
 pub mod tree;
 
 use crate::accel::Visibility;
+use crate::coupling::closure::Enclosure;
 use crate::coupling::Coupling;
 use crate::formfactor::analytic_point::{lambert_vector, point_to_polygon};
 use crate::formfactor::kernel::{Kernel, Receiver, SourcePolygon};
@@ -214,6 +216,10 @@ pub struct Hierarchical {
     /// Links accepted although their error exceeded the threshold (nothing left to split).
     pub forced: usize,
     form_factor_seconds: f64,
+    /// Whether light can leave the scene (probed once on the input polygons).
+    enclosure: Enclosure,
+    /// The closure of the links' rows and columns for the current leaves ([`closure`]).
+    closure: closure::Closure,
 }
 
 /// What the oracle decided for a candidate link.
@@ -325,10 +331,14 @@ impl Hierarchical {
             capped: false,
             forced: 0,
             form_factor_seconds: 0.0,
+            enclosure: Enclosure::Open,
+            closure: closure::Closure::default(),
             tree,
         };
         h.grow();
         h.rebuild_mesh(&objects, scene);
+        h.enclosure = Enclosure::probe(&h.mesh, &h.visibility);
+        h.closure = closure::Closure::new(&h, h.enclosure);
         // Light sources (point, spot, goniometric) count as emitted power: their first shot
         // is part of the leaves' source term (see `rebuild_mesh`).
         for c in 0..3 {
@@ -1072,6 +1082,7 @@ impl Hierarchical {
         crate::direct::illuminate_with(&mut mesh, &scene.lights, &self.visibility);
         self.mesh = mesh;
         self.leaves = leaves;
+        self.closure = closure::Closure::new(self, self.enclosure);
     }
 
     /// After [`Hierarchical::refine`]: the leaf mesh of the refined hierarchy and, for each of
@@ -1243,7 +1254,9 @@ impl Coupling for Hierarchical {
     fn gather(&self, radiosity: &[[f64; 3]]) -> Vec<[f64; 3]> {
         let state = pull_state(&self.tree, &self.leaves, radiosity);
         let gathered = gather_with(&self.links, &state);
-        self.push(&gathered)
+        let mut h = self.push(&gathered);
+        self.closure.apply(self, &state, radiosity, &mut h);
+        h
     }
 
     fn sources(&self) -> usize {
@@ -1463,7 +1476,7 @@ mod tests {
     use crate::scene::{Material, MaterialId, Origin, Surface};
 
     /// The unit cube with inward-facing faces, every face emitting E = 1 W·m⁻² and ρ = 0.5.
-    fn furnace() -> Scene {
+    pub(super) fn furnace() -> Scene {
         let faces: [[[f64; 3]; 4]; 6] = [
             [[0., 0., 1.], [1., 0., 1.], [1., 0., 0.], [0., 0., 0.]],
             [[0., 1., 0.], [1., 1., 0.], [1., 1., 1.], [0., 1., 1.]],
