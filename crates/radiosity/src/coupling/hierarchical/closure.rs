@@ -530,8 +530,8 @@ mod tests {
 
     /// The transposed pass agrees with the column sums of the gather itself, taken one
     /// unit radiosity at a time (with no closure applied).
-    #[test]
-    fn column_sums_are_the_transpose_of_the_gather() {
+    /// The furnace cube's hierarchy, refined to `epsilon` for unit radiosity everywhere.
+    fn refined_furnace(epsilon: f64) -> Hierarchical {
         let scene = super::super::tests::furnace();
         let mut h = Hierarchical::new(
             &scene,
@@ -541,8 +541,14 @@ mod tests {
         .unwrap();
         let ones = vec![[1.0; 3]; h.mesh().elements.len()];
         h.set_solution(&ones, &ones);
-        h.refine(0.05);
+        h.refine(epsilon);
         h.remesh(&scene);
+        h
+    }
+
+    #[test]
+    fn column_sums_are_the_transpose_of_the_gather() {
+        let mut h = refined_furnace(0.05);
         h.closure = Closure::default();
         let n = h.mesh().elements.len();
         assert!(n > 20, "{n}");
@@ -570,18 +576,8 @@ mod tests {
     /// every face's column to its area.
     #[test]
     fn rows_and_face_columns_are_closed() {
-        let scene = super::super::tests::furnace();
-        let mut h = Hierarchical::new(
-            &scene,
-            FormFactorMethod::Raycast.kernel(),
-            super::super::HierarchicalOptions::default(),
-        )
-        .unwrap();
+        let h = refined_furnace(0.02);
         assert_eq!(h.enclosure, Enclosure::Closed);
-        let ones = vec![[1.0; 3]; h.mesh().elements.len()];
-        h.set_solution(&ones, &ones);
-        h.refine(0.02);
-        h.remesh(&scene);
         let n = h.mesh().elements.len();
         let rows = h.gather(&vec![[1.0; 3]; n]);
         let worst = rows.iter().map(|r| (r[0] - 1.0).abs()).fold(0.0, f64::max);
