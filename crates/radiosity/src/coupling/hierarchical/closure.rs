@@ -546,6 +546,17 @@ mod tests {
         h
     }
 
+    /// The power Σ_p A_p H_p (first channel) the leaves gather from radiosities `b`.
+    fn delivered(h: &Hierarchical, b: &[[f64; 3]]) -> f64 {
+        let g = h.gather(b);
+        h.mesh()
+            .elements
+            .iter()
+            .zip(&g)
+            .map(|(e, g)| e.area * g[0])
+            .sum()
+    }
+
     #[test]
     fn column_sums_are_the_transpose_of_the_gather() {
         let mut h = refined_furnace(0.05);
@@ -556,14 +567,7 @@ mod tests {
         for i in (0..n).step_by(7) {
             let mut b = vec![[0.0; 3]; n];
             b[i] = [1.0; 3];
-            let g = h.gather(&b);
-            let direct: f64 = h
-                .mesh()
-                .elements
-                .iter()
-                .zip(&g)
-                .map(|(e, g)| e.area * g[0])
-                .sum();
+            let direct = delivered(&h, &b);
             assert!(
                 (direct - c[i]).abs() <= 1e-9 * direct.abs().max(1e-6),
                 "leaf {i}: {direct} vs {}",
@@ -589,14 +593,7 @@ mod tests {
                 .iter()
                 .map(|e| [if e.patch.0 == patch { 1.0 } else { 0.0 }; 3])
                 .collect();
-            let g = h.gather(&b);
-            let power: f64 = h
-                .mesh()
-                .elements
-                .iter()
-                .zip(&g)
-                .map(|(e, g)| e.area * g[0])
-                .sum();
+            let power = delivered(&h, &b);
             let area: f64 = h
                 .mesh()
                 .elements
