@@ -717,7 +717,13 @@ impl Hierarchical {
             return Estimate::zero();
         }
         // The kernel's value without occlusion, times the visible fraction estimated here.
-        let open = self.kernel.form_factor(&receiver, source, &self.open);
+        // The ray-cast kernel's unoccluded value is this same receiver-point sum of exact
+        // point-to-polygon form factors (`formfactor::raycast`), so it is not computed twice.
+        let open = if self.kernel.method() == crate::formfactor::FormFactorMethod::Raycast {
+            unoccluded
+        } else {
+            self.kernel.form_factor(&receiver, source, &self.open)
+        };
         let v = if self.clear(p, q) {
             1.0
         } else {
