@@ -2,7 +2,8 @@
 
 /// Receives progress from long-running stages. Implementations must be cheap and thread-safe.
 pub trait Progress: Sync {
-    /// A stage with `total` steps begins.
+    /// A stage with `total` steps begins (0: how many is not known ahead, as for the
+    /// hierarchical solver's linking stages; the steps are still counted by `inc`).
     fn start(&self, stage: &str, total: u64);
     /// `n` more steps are done.
     fn inc(&self, n: u64);
