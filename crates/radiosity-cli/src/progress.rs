@@ -212,11 +212,17 @@ impl Observer for &Bars {
         let elapsed = s.started.elapsed().as_secs_f64().max(1e-9);
         let rate = step.index as f64 / elapsed;
         let eta = eta.map_or("—".to_string(), |t| format!("{t:.1} s"));
+        // Not known before the first iteration of a solve (or of a hierarchical stage).
+        let value = if step.residual.is_finite() {
+            format!("{:.2e}", step.residual)
+        } else {
+            "—".to_string()
+        };
         s.bar
             .set_position((s.eta.fraction() * SOLVER_BAR as f64) as u64);
         s.bar.set_message(format!(
-            "{quantity} {:.2e} → {:.0e}, {} {unit} ({rate:.0}/s), {elapsed:.1} s, eta {eta}",
-            step.residual, step.tolerance, step.index
+            "{quantity} {value} → {:.0e}, {} {unit} ({rate:.0}/s), {elapsed:.1} s, eta {eta}",
+            step.tolerance, step.index
         ));
         Flow::Continue
     }

@@ -128,7 +128,9 @@ impl Closure {
         // target are accepted (the closed rooms of tests/closed_rooms.rs need up to 0.45);
         // beyond, only the rows are closed, and only those within MAX_CORRECTION.
         // (Bounds relative to the closed row, 1, and to the leaf's area: a leaf that sees
-        // nothing, floor under a box, has targets 0 but exchanges no light.)
+        // nothing, floor under a box, has targets 0 but exchanges no light.) Solving again
+        // without the leaves beyond, up to three times, let 14 % of the light escape from
+        // the 30-object room (1 % with the rows alone).
         let sane = (0..leaves).all(|p| {
             (both.row[p] * w_row[p]).abs() <= MAX_PART
                 && (both.column[p] * w_col[p]).abs() <= MAX_PART * area[p]
@@ -565,6 +567,38 @@ mod tests {
         assert!(n > 20, "{n}");
         let c = columns(&h);
         for i in (0..n).step_by(7) {
+            let mut b = vec![[0.0; 3]; n];
+            b[i] = [1.0; 3];
+            let direct = delivered(&h, &b);
+            assert!(
+                (direct - c[i]).abs() <= 1e-9 * direct.abs().max(1e-6),
+                "leaf {i}: {direct} vs {}",
+                c[i]
+            );
+        }
+    }
+
+    /// The same in a furnished room, whose hierarchy also links to oriented clusters and
+    /// to and from wide clusters of boxes, exchanging uniformly.
+    #[test]
+    fn column_sums_are_the_transpose_of_the_gather_in_a_furnished_room() {
+        let scene = crate::generate::furnished_room(4, 3);
+        let mut h = Hierarchical::new(
+            &scene,
+            FormFactorMethod::Raycast.kernel(),
+            super::super::HierarchicalOptions::default(),
+        )
+        .unwrap();
+        let ones = vec![[1.0; 3]; h.mesh().elements.len()];
+        h.set_solution(&ones, &ones);
+        h.refine(0.2);
+        h.remesh(&scene);
+        h.closure = Closure::default();
+        let kinds = h.link_kinds();
+        assert!(kinds[0] > 0 && kinds[2] > 0 && kinds[4] > 0, "{kinds:?}");
+        let n = h.mesh().elements.len();
+        let c = columns(&h);
+        for i in (0..n).step_by(n / 40 + 1) {
             let mut b = vec![[0.0; 3]; n];
             b[i] = [1.0; 3];
             let direct = delivered(&h, &b);

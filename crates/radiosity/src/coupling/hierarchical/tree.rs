@@ -324,8 +324,7 @@ impl Tree {
     }
 
     /// Splits polygon node `node` into its children (if it has none yet) and returns them:
-    /// a triangle or quad into four by its order-2 lattice (edge midpoints), a larger convex
-    /// polygon into two by the line through its centroid across its longest extent.
+    /// see [`split_polygon`].
     pub fn subdivide(&mut self, node: u32) -> std::ops::Range<u32> {
         let n = self.nodes[node as usize].clone();
         if n.child_count > 0 {
@@ -335,11 +334,7 @@ impl Tree {
             return n.children();
         };
         let vertices = self.polygon(node).to_vec();
-        let pieces: Vec<Vec<DVec3>> = if vertices.len() <= 4 {
-            crate::geometry::subdivide(&vertices, 2)
-        } else {
-            split_in_two(&vertices)
-        };
+        let pieces = split_polygon(&vertices);
         let first = self.nodes.len() as u32;
         for piece in &pieces {
             let child = self.polygon_node(piece, input, n.depth + 1, node);
@@ -474,6 +469,94 @@ fn plane_moment(vertices: &[DVec3], centre: DVec3, normal: DVec3) -> [f64; 3] {
 
 /// Splits a convex polygon into two convex halves by the line through its centroid
 /// perpendicular to its longest vertex-to-vertex extent.
+/// Longer over shorter side beyond which a quad splits in two across its length rather than
+/// in four: a 2 : 1 quad gives two squares.
+const LONG_QUAD: f64 = 2.0;
+/// Longest edge over the height on it beyond which a triangle is bisected on that edge
+/// rather than split in four (a right isosceles triangle has 2, an equilateral 1.15).
+const LONG_TRIANGLE: f64 = 2.5;
+
+/// How a polygon node splits: a triangle or quad into four by its order-2 lattice (edge
+/// midpoints), keeping its shape; an elongated one in two across its length, so that
+/// slivers (a 100 m × 1 m corridor floor, a plank's 2 cm edge) become well-shaped
+/// elements instead of thinner slivers, on which receiver points and affine fits lose
+/// their accuracy: a quad whose opposite sides average more than [`LONG_QUAD`] times the
+/// others by the lattice 2 × 1, a triangle whose longest edge exceeds [`LONG_TRIANGLE`]
+/// times its height by that edge's midpoint; a larger convex polygon in two by the line
+/// through its centroid across its longest extent. Midpoints are the lattice's, so
+/// neighbours share them bit for bit.
+pub fn split_polygon(vertices: &[DVec3]) -> Vec<Vec<DVec3>> {
+    match split_shape(vertices) {
+        Split::Quad { nu, nv } => crate::geometry::Lattice::Quad {
+            corners: [vertices[0], vertices[1], vertices[2], vertices[3]],
+            nu,
+            nv,
+        }
+        .cell_polygons(),
+        Split::Bisect(longest) => {
+            let corners = [0, 1, 2].map(|k| vertices[(longest + k) % 3]);
+            let middle = crate::geometry::Lattice::Triangle { corners, n: 2 }.point(1, 0);
+            vec![
+                vec![corners[0], middle, corners[2]],
+                vec![middle, corners[1], corners[2]],
+            ]
+        }
+        Split::Triangle => crate::geometry::subdivide(vertices, 2),
+        Split::Halves => split_in_two(vertices),
+    }
+}
+
+/// How many pieces [`split_polygon`] makes of `vertices`.
+pub fn split_count(vertices: &[DVec3]) -> usize {
+    match split_shape(vertices) {
+        Split::Quad { nu, nv } => (nu * nv) as usize,
+        Split::Triangle => 4,
+        Split::Bisect(_) | Split::Halves => 2,
+    }
+}
+
+/// The ways [`split_polygon`] splits.
+enum Split {
+    /// A quad by the lattice nu × nv.
+    Quad { nu: u32, nv: u32 },
+    /// A triangle into four similar ones.
+    Triangle,
+    /// A triangle in two at the midpoint of edge k (from vertex k).
+    Bisect(usize),
+    /// A larger polygon in two across its longest extent.
+    Halves,
+}
+
+fn split_shape(vertices: &[DVec3]) -> Split {
+    match vertices.len() {
+        4 => {
+            let side = |i: usize| vertices[i].distance(vertices[(i + 1) % 4]);
+            let (along_u, along_v) = (side(0) + side(2), side(1) + side(3));
+            if along_u > LONG_QUAD * along_v {
+                Split::Quad { nu: 2, nv: 1 }
+            } else if along_v > LONG_QUAD * along_u {
+                Split::Quad { nu: 1, nv: 2 }
+            } else {
+                Split::Quad { nu: 2, nv: 2 }
+            }
+        }
+        3 => {
+            let (_, area) = newell(vertices);
+            let side = |i: usize| vertices[i].distance(vertices[(i + 1) % 3]);
+            let longest = (0..3)
+                .max_by(|&a, &b| side(a).total_cmp(&side(b)))
+                .unwrap_or(0);
+            let length = side(longest);
+            if length * length > LONG_TRIANGLE * 2.0 * area {
+                Split::Bisect(longest)
+            } else {
+                Split::Triangle
+            }
+        }
+        _ => Split::Halves,
+    }
+}
+
 fn split_in_two(vertices: &[DVec3]) -> Vec<Vec<DVec3>> {
     let (normal, _) = newell(vertices);
     let centre = crate::formfactor::kernel::polygon_centroid(vertices);
@@ -665,6 +748,46 @@ mod tests {
             node.area += area;
         }
         node
+    }
+
+    /// Slivers split across their length, everything else in four; the pieces tile the
+    /// parent (areas add up, orientation kept) and their count is what `split_count` says.
+    #[test]
+    fn slivers_split_across_their_length() {
+        let v = |x: f64, y: f64| DVec3::new(x, y, 0.0);
+        let cases: [(Vec<DVec3>, usize); 5] = [
+            (vec![v(0., 0.), v(1., 0.), v(1., 1.), v(0., 1.)], 4),
+            (vec![v(0., 0.), v(10., 0.), v(10., 1.), v(0., 1.)], 2),
+            (vec![v(0., 0.), v(1., 0.), v(1., 10.), v(0., 10.)], 2),
+            (vec![v(0., 0.), v(1., 0.), v(0., 1.)], 4),
+            (vec![v(0., 0.), v(10., 0.), v(5., 0.5)], 2),
+        ];
+        for (polygon, count) in cases {
+            let (normal, area) = newell(&polygon);
+            let pieces = split_polygon(&polygon);
+            assert_eq!(pieces.len(), count, "{polygon:?}");
+            assert_eq!(split_count(&polygon), count);
+            let mut total = 0.0;
+            let mut worst: f64 = 0.0;
+            for piece in &pieces {
+                let (n, a) = newell(piece);
+                assert!(n.dot(normal) > 0.999, "{piece:?}");
+                total += a;
+                // Longest side over the area's square root: 1 for a square.
+                let longest = (0..piece.len())
+                    .map(|i| piece[i].distance(piece[(i + 1) % piece.len()]))
+                    .fold(0.0, f64::max);
+                worst = worst.max(longest / a.sqrt());
+            }
+            assert!((total - area).abs() < 1e-12 * area);
+            let before = (0..polygon.len())
+                .map(|i| polygon[i].distance(polygon[(i + 1) % polygon.len()]))
+                .fold(0.0, f64::max)
+                / area.sqrt();
+            if count == 2 {
+                assert!(worst < 0.75 * before, "{worst} vs {before}");
+            }
+        }
     }
 
     #[test]
