@@ -550,7 +550,9 @@ impl Hierarchical {
         if nq.is_polygon() && self.behind(p, q) {
             return Decision::Drop;
         }
-        let estimate = self.estimate(p, q);
+        // Past the memory cap every link is kept as it stands, so its transfer is needed.
+        let refuse_above = if at_cap { None } else { Some(&threshold) };
+        let estimate = self.estimate(p, q, refuse_above);
         let sq = &self.state[q as usize];
         let (mut geometric, mut uniformity) = (0.0f64, 0.0f64);
         let mut within = true;
@@ -650,7 +652,9 @@ impl Hierarchical {
     }
 
     /// The transfer of the link p ← q and its geometric error coefficient.
-    fn estimate(&self, p: u32, q: u32) -> Estimate {
+    /// With `refuse_above`, the tolerance the link must meet: a link that a cheap bound
+    /// already rules out is not sampled (no transfer, it must open).
+    fn estimate(&self, p: u32, q: u32, refuse_above: Option<&[f64; 3]>) -> Estimate {
         let (np, nq) = (&self.tree.nodes[p as usize], &self.tree.nodes[q as usize]);
         match (np.is_polygon(), nq.is_polygon()) {
             (true, true) => self.polygon_polygon(p, q),
@@ -658,21 +662,27 @@ impl Hierarchical {
                 if self.oriented(q, p) && self.in_front(q, p) {
                     self.sampled(p, q, End::Polygon, End::Oriented)
                 } else {
-                    self.wide(p, q, false, true)
+                    self.wide(p, q, false, true, refuse_above)
                 }
             }
             (false, true) => {
                 if self.oriented(p, q) && self.in_front(p, q) {
                     self.cluster_polygon(p, q)
                 } else {
-                    self.wide(p, q, true, false)
+                    self.wide(p, q, true, false, refuse_above)
                 }
             }
             (false, false) => {
                 if self.oriented(p, q) && self.oriented(q, p) {
                     self.sampled(p, q, End::Oriented, End::Oriented)
                 } else {
-                    self.wide(p, q, !self.oriented(p, q), !self.oriented(q, p))
+                    self.wide(
+                        p,
+                        q,
+                        !self.oriented(p, q),
+                        !self.oriented(q, p),
+                        refuse_above,
+                    )
                 }
             }
         }
@@ -970,7 +980,14 @@ impl Hierarchical {
     /// A link with a wide (not oriented) cluster at an end: allowed only when an upper bound
     /// of its transfer is below the threshold, as a sampled exchange spread uniformly;
     /// otherwise the wide cluster must open.
-    fn wide(&self, p: u32, q: u32, open_p: bool, open_q: bool) -> Estimate {
+    fn wide(
+        &self,
+        p: u32,
+        q: u32,
+        open_p: bool,
+        open_q: bool,
+        refuse_above: Option<&[f64; 3]>,
+    ) -> Estimate {
         let (np, nq) = (&self.tree.nodes[p as usize], &self.tree.nodes[q as usize]);
         let r = np.centre.distance(nq.centre);
         let gap = r - np.radius - nq.radius;
@@ -998,6 +1015,15 @@ impl Hierarchical {
         let spread = ((np.radius + nq.radius) / r).min(1.0).asin();
         let bound =
             nq.projected_bound(-toward, spread) * cos_bound(np, toward, spread) / (PI * gap * gap);
+        // The link's error is at least bound · B_q^max: where that alone is over the
+        // tolerance the link opens whatever the samples say, so they are not taken (most wide
+        // candidates; identical links, fewer rays).
+        if let Some(threshold) = refuse_above {
+            let b_max = &self.state[q as usize].b_max;
+            if (0..3).any(|c| bound * b_max[c] > threshold[c]) {
+                return must;
+            }
+        }
         // The mean irradiance over p per unit radiosity of q, A_q · ⟨cos θ_y cos θ_x V/(π r²)⟩
         // over pairs of area-stratified sample points of both ends with their own normals
         // (one-sided: a member facing away neither emits nor receives). Unbiased where the
