@@ -530,13 +530,15 @@ mod tests {
     use crate::coupling::Coupling;
     use crate::formfactor::FormFactorMethod;
 
-    /// The transposed pass agrees with the column sums of the gather itself, taken one
-    /// unit radiosity at a time (with no closure applied).
     /// The furnace cube's hierarchy, refined to `epsilon` for unit radiosity everywhere.
     fn refined_furnace(epsilon: f64) -> Hierarchical {
-        let scene = super::super::tests::furnace();
+        refined(&super::super::tests::furnace(), epsilon)
+    }
+
+    /// The hierarchy of `scene`, refined to `epsilon` for unit radiosity everywhere.
+    fn refined(scene: &crate::scene::Scene, epsilon: f64) -> Hierarchical {
         let mut h = Hierarchical::new(
-            &scene,
+            scene,
             FormFactorMethod::Raycast.kernel(),
             super::super::HierarchicalOptions::default(),
         )
@@ -544,7 +546,7 @@ mod tests {
         let ones = vec![[1.0; 3]; h.mesh().elements.len()];
         h.set_solution(&ones, &ones);
         h.refine(epsilon);
-        h.remesh(&scene);
+        h.remesh(scene);
         h
     }
 
@@ -559,17 +561,15 @@ mod tests {
             .sum()
     }
 
-    #[test]
-    fn column_sums_are_the_transpose_of_the_gather() {
-        let mut h = refined_furnace(0.05);
-        h.closure = Closure::default();
+    /// Every `stride`-th leaf's column from [`columns`] against the power the gather
+    /// delivers from unit radiosity on that leaf alone (no closure applied).
+    fn assert_columns_match_the_gather(h: &Hierarchical, stride: usize) {
         let n = h.mesh().elements.len();
-        assert!(n > 20, "{n}");
-        let c = columns(&h);
-        for i in (0..n).step_by(7) {
+        let c = columns(h);
+        for i in (0..n).step_by(stride) {
             let mut b = vec![[0.0; 3]; n];
             b[i] = [1.0; 3];
-            let direct = delivered(&h, &b);
+            let direct = delivered(h, &b);
             assert!(
                 (direct - c[i]).abs() <= 1e-9 * direct.abs().max(1e-6),
                 "leaf {i}: {direct} vs {}",
@@ -578,36 +578,26 @@ mod tests {
         }
     }
 
+    /// The transposed pass agrees with the column sums of the gather itself, taken one
+    /// unit radiosity at a time (with no closure applied).
+    #[test]
+    fn column_sums_are_the_transpose_of_the_gather() {
+        let mut h = refined_furnace(0.05);
+        h.closure = Closure::default();
+        let n = h.mesh().elements.len();
+        assert!(n > 20, "{n}");
+        assert_columns_match_the_gather(&h, 7);
+    }
+
     /// The same in a furnished room, whose hierarchy also links to oriented clusters and
     /// to and from wide clusters of boxes, exchanging uniformly.
     #[test]
     fn column_sums_are_the_transpose_of_the_gather_in_a_furnished_room() {
-        let scene = crate::generate::furnished_room(4, 3);
-        let mut h = Hierarchical::new(
-            &scene,
-            FormFactorMethod::Raycast.kernel(),
-            super::super::HierarchicalOptions::default(),
-        )
-        .unwrap();
-        let ones = vec![[1.0; 3]; h.mesh().elements.len()];
-        h.set_solution(&ones, &ones);
-        h.refine(0.2);
-        h.remesh(&scene);
+        let mut h = refined(&crate::generate::furnished_room(4, 3), 0.2);
         h.closure = Closure::default();
         let kinds = h.link_kinds();
         assert!(kinds[0] > 0 && kinds[2] > 0 && kinds[4] > 0, "{kinds:?}");
-        let n = h.mesh().elements.len();
-        let c = columns(&h);
-        for i in (0..n).step_by(n / 40 + 1) {
-            let mut b = vec![[0.0; 3]; n];
-            b[i] = [1.0; 3];
-            let direct = delivered(&h, &b);
-            assert!(
-                (direct - c[i]).abs() <= 1e-9 * direct.abs().max(1e-6),
-                "leaf {i}: {direct} vs {}",
-                c[i]
-            );
-        }
+        assert_columns_match_the_gather(&h, h.mesh().elements.len() / 40 + 1);
     }
 
     /// In the closed furnace cube every leaf's row of the closed operator sums to 1 and
