@@ -37,6 +37,12 @@ pub struct Dense<'a> {
     /// Weight of each element in its patch's far mean ([`super::far_weights`]).
     far_weight: Vec<f64>,
     form_factor_seconds: f64,
+    /// The far factors column-major (patch by patch, every element), made on the first shot:
+    /// a shot reads one patch's column, which the row-major matrix spreads over one cache
+    /// line per element (measured by `radiosity compare` on the default Cornell mesh, 4680
+    /// elements × 528 patches: progressive to 1e-4, 3374 shots, 453–534 ms reading the
+    /// rows' stride, 204–283 ms reading a column copy).
+    columns: std::sync::OnceLock<Vec<f32>>,
 }
 
 impl<'a> Dense<'a> {
@@ -105,6 +111,7 @@ impl<'a> Dense<'a> {
             patch_area: mesh.patches.iter().map(|p| mesh.patch_area(p)).collect(),
             far_weight,
             form_factor_seconds: started.elapsed().as_secs_f64(),
+            columns: std::sync::OnceLock::new(),
         }
     }
 
@@ -255,9 +262,20 @@ impl Coupling for Dense<'_> {
     fn shoot(&self, source: usize, shot: &[[f64; 3]], receive: &mut dyn FnMut(usize, [f64; 3])) {
         let range = self.source_elements(source);
         let mean = weighted_mean(range.clone(), &self.far_weight, shot);
-        for e in 0..self.mesh.elements.len() {
-            let f = self.data[e * self.patches + source] as f64;
+        let elements = self.mesh.elements.len();
+        let columns = self.columns.get_or_init(|| {
+            let mut t = vec![0.0f32; self.data.len()];
+            for (e, row) in self.data.chunks_exact(self.patches.max(1)).enumerate() {
+                for (p, &f) in row.iter().enumerate() {
+                    t[p * elements + e] = f;
+                }
+            }
+            t
+        });
+        let column = &columns[source * elements..(source + 1) * elements];
+        for (e, &f) in column.iter().enumerate() {
             if f != 0.0 {
+                let f = f as f64;
                 receive(e, mean.map(|m| f * m));
             }
         }
@@ -276,7 +294,9 @@ impl Coupling for Dense<'_> {
     }
 
     fn memory_bytes(&self) -> u64 {
-        (self.data.len() * 4 + self.near.iter().map(|l| 24 + l.len() * 8).sum::<usize>()) as u64
+        let columns = self.columns.get().map_or(0, Vec::len);
+        ((self.data.len() + columns) * 4
+            + self.near.iter().map(|l| 24 + l.len() * 8).sum::<usize>()) as u64
     }
 
     fn form_factor_seconds(&self) -> f64 {
@@ -285,5 +305,85 @@ impl Coupling for Dense<'_> {
 
     fn as_dense(&self) -> Option<&Dense<'_>> {
         Some(self)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::accel::Visibility;
+    use crate::coupling::closure::Enclosure;
+    use crate::formfactor::{engine, FormFactorMethod};
+    use crate::mesh::MeshOptions;
+    use crate::progress::NoProgress;
+
+    /// A shot is the gather of one source alone: for every patch p and radiosity u on its
+    /// elements only (different per element and channel), what `shoot(p, u)` delivers to
+    /// each element equals `gather` of u placed on p — far factors read column by column
+    /// from the column copy, near links from the element lists. Both sum the same f32
+    /// factors in f64 (in a different order), so they agree to rounding: 1e-12 relative.
+    #[test]
+    fn every_patch_shoots_what_the_gather_of_that_patch_alone_receives() {
+        let scene = crate::cornell::cornell_box();
+        let options = MeshOptions {
+            elements: 300,
+            ..Default::default()
+        };
+        let mesh = Mesh::build(&scene, &options).unwrap();
+        let visibility = Visibility::new(&mesh);
+        let near = NearField::decide(&mesh);
+        let enclosure = Enclosure::probe(&mesh, &visibility);
+        let engine = engine(
+            FormFactorMethod::Raycast,
+            &mesh,
+            &visibility,
+            &near.per_element,
+        );
+        let coupling = Dense::compute(&mesh, engine.as_ref(), &near, enclosure, &NoProgress);
+        let n = mesh.elements.len();
+        let (mut near_checked, mut reaching) = (0, 0);
+        for p in 0..coupling.sources() {
+            let range = coupling.source_elements(p);
+            let shot: Vec<[f64; 3]> = range
+                .clone()
+                .map(|e| {
+                    let x = 1.0 + (e % 7) as f64;
+                    [x, 2.0 * x, 0.5 + x * x]
+                })
+                .collect();
+            let mut b = vec![[0.0; 3]; n];
+            for (e, u) in range.clone().zip(&shot) {
+                b[e as usize] = *u;
+            }
+            let gathered = coupling.gather(&b);
+            let mut shot_in = vec![[0.0; 3]; n];
+            coupling.shoot(p, &shot, &mut |e, dh| {
+                for c in 0..3 {
+                    shot_in[e][c] += dh[c];
+                }
+            });
+            near_checked += coupling.near_receivers[p].len();
+            // (A patch of floor under a block reaches nothing: both sides are zero.)
+            let scale = gathered
+                .iter()
+                .flatten()
+                .fold(0.0f64, |m, x| m.max(x.abs()));
+            reaching += usize::from(scale > 0.0);
+            for e in 0..n {
+                for c in 0..3 {
+                    let (g, s) = (gathered[e][c], shot_in[e][c]);
+                    assert!(
+                        (g - s).abs() <= 1e-12 * scale,
+                        "patch {p} → element {e}, channel {c}: gather {g}, shoot {s}"
+                    );
+                }
+            }
+        }
+        assert!(near_checked > 0, "no near links were exercised");
+        assert!(
+            reaching > coupling.sources() * 3 / 4,
+            "only {reaching} of {} patches reach anything",
+            coupling.sources()
+        );
     }
 }
