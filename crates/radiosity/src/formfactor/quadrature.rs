@@ -31,6 +31,20 @@ pub fn gauss_legendre(n: usize) -> Vec<(f64, f64)> {
     out
 }
 
+/// Orders up to which [`cached_rule`] keeps the rule.
+const CACHED_ORDERS: usize = 16;
+
+/// [`gauss_legendre`]`(n)` for `n` ≤ [`CACHED_ORDERS`], computed once per order: element
+/// points are taken for every candidate link of the hierarchical solver, where the Newton
+/// iterations of the rule took 3.7 % of the samples profiling the Cornell box's solve.
+fn cached_rule(n: usize) -> Option<&'static [(f64, f64)]> {
+    static RULES: [std::sync::OnceLock<Vec<(f64, f64)>>; CACHED_ORDERS + 1] =
+        [const { std::sync::OnceLock::new() }; CACHED_ORDERS + 1];
+    RULES
+        .get(n)
+        .map(|cell| cell.get_or_init(|| gauss_legendre(n)).as_slice())
+}
+
 /// `n × n` points with weights summing to 1 over a convex triangle or quad; `n = 1` gives
 /// the centroid. A polygon of more corners (a cell along the outline of a polygon of many
 /// vertices, [`crate::mesh::grid`]) by the rule on each triangle of its fan, weighted by the
@@ -43,13 +57,20 @@ pub fn element_points(corners: &[DVec3], centroid: DVec3, n: usize, out: &mut Ve
         out.push((centroid, 1.0));
         return;
     }
-    let rule = gauss_legendre(n);
+    let computed;
+    let rule: &[(f64, f64)] = match cached_rule(n) {
+        Some(rule) => rule,
+        None => {
+            computed = gauss_legendre(n);
+            &computed
+        }
+    };
     match corners.len() {
         4 => {
             let [a, b, c, d] = [corners[0], corners[1], corners[2], corners[3]];
             let mut total = 0.0;
-            for &(u, wu) in &rule {
-                for &(v, wv) in &rule {
+            for &(u, wu) in rule {
+                for &(v, wv) in rule {
                     let p = (1.0 - u) * (1.0 - v) * a
                         + u * (1.0 - v) * b
                         + u * v * c
@@ -63,7 +84,7 @@ pub fn element_points(corners: &[DVec3], centroid: DVec3, n: usize, out: &mut Ve
             }
             out.iter_mut().for_each(|(_, w)| *w /= total);
         }
-        3 => triangle_points(&rule, [corners[0], corners[1], corners[2]], 1.0, out),
+        3 => triangle_points(rule, [corners[0], corners[1], corners[2]], 1.0, out),
         _ => {
             let fan = |w: &[DVec3]| 0.5 * (w[0] - corners[0]).cross(w[1] - corners[0]).length();
             let total: f64 = corners[1..].windows(2).map(fan).sum();
@@ -72,7 +93,7 @@ pub fn element_points(corners: &[DVec3], centroid: DVec3, n: usize, out: &mut Ve
                 return;
             }
             for w in corners[1..].windows(2) {
-                triangle_points(&rule, [corners[0], w[0], w[1]], fan(w) / total, out);
+                triangle_points(rule, [corners[0], w[0], w[1]], fan(w) / total, out);
             }
         }
     }
