@@ -40,8 +40,8 @@ pub struct Dense<'a> {
     /// The far factors column-major (patch by patch, every element), made on the first shot:
     /// a shot reads one patch's column, which the row-major matrix spreads over one cache
     /// line per element (measured by `radiosity compare` on the default Cornell mesh, 4680
-    /// elements × 528 patches: progressive to 1e-4, 3374 shots, 453–534 ms reading the
-    /// rows' stride, 204–283 ms reading a column copy).
+    /// elements × 528 patches: progressive to 1e-4, 3374 shots, 453–695 ms reading the
+    /// rows' stride, 177–283 ms reading a column copy).
     columns: std::sync::OnceLock<Vec<f32>>,
 }
 
