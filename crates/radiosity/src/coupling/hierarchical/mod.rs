@@ -977,6 +977,36 @@ impl Hierarchical {
         }
     }
 
+    /// An upper bound of the irradiance at any point of node `p` per unit radiosity of node
+    /// `q` (visibility ignored), or `None` where the two touch: P_q cos_p / (π d²), with d
+    /// the larger of the distance between their bounding boxes and their bounding spheres'
+    /// gap (each at most that between any two of their points; the boxes' is often much
+    /// more: a row of boxes is long and low), P_q the bound of the source's projected area over the directions between
+    /// the two ([`tree::Node::projected_bound`]: within α = asin((r_p + r_q)/r) of the line
+    /// of centres where the bounding spheres are apart, any direction where they overlap)
+    /// and cos_p that of the receiver's normal cone's nearest approach to them
+    /// ([`cos_bound`]). (A_q/(π gap²) with the spheres' gap before: a cluster of boxes shows
+    /// at most about a third of its area in any direction; the boxes' distance cut the links
+    /// of the furnished rooms of the scale benchmark by 28 % at 100 objects and 39 % at 300.)
+    fn wide_bound(&self, p: u32, q: u32) -> Option<f64> {
+        let (np, nq) = (&self.tree.nodes[p as usize], &self.tree.nodes[q as usize]);
+        let [lo_p, hi_p] = np.bounds;
+        let [lo_q, hi_q] = nq.bounds;
+        let r = np.centre.distance(nq.centre);
+        let boxes = (lo_p - hi_q).max(lo_q - hi_p).max(DVec3::ZERO).length();
+        let gap = boxes.max(r - np.radius - nq.radius);
+        if gap <= 0.0 {
+            return None;
+        }
+        let toward = (nq.centre - np.centre) / r;
+        let spread = if r > np.radius + nq.radius {
+            ((np.radius + nq.radius) / r).asin()
+        } else {
+            PI
+        };
+        Some(nq.projected_bound(-toward, spread) * cos_bound(np, toward, spread) / (PI * gap * gap))
+    }
+
     /// A link with a wide (not oriented) cluster at an end: allowed only when an upper bound
     /// of its transfer is below the threshold, as a sampled exchange spread uniformly;
     /// otherwise the wide cluster must open.
@@ -988,9 +1018,7 @@ impl Hierarchical {
         open_q: bool,
         refuse_above: Option<&[f64; 3]>,
     ) -> Estimate {
-        let (np, nq) = (&self.tree.nodes[p as usize], &self.tree.nodes[q as usize]);
-        let r = np.centre.distance(nq.centre);
-        let gap = r - np.radius - nq.radius;
+        let nq = &self.tree.nodes[q as usize];
         let must = Estimate {
             transfer: None,
             delta: f64::INFINITY,
@@ -999,22 +1027,11 @@ impl Hierarchical {
             must_open_p: open_p,
             must_open_q: open_q,
         };
-        // A wide receiving cluster opens: spread uniformly, its members facing the source
-        // and those facing away would read the same irradiance.
-        if gap <= 0.0 {
+        // A wide receiving cluster opens where the two touch: spread uniformly, its members
+        // facing the source and those facing away would read the same irradiance.
+        let Some(bound) = self.wide_bound(p, q) else {
             return must;
-        }
-        // The irradiance at any point of p per unit radiosity of q is at most
-        // P_q cos_p / (π gap²): every direction between the two bounding spheres lies within
-        // α = asin((r_p + r_q)/r) of the line of centres, so the source's projected area
-        // toward p is at most its bound P_q over that cone ([`tree::Node::projected_bound`]),
-        // and the cosine at the receiver at most that of its normal cone's nearest approach
-        // ([`cos_bound`]). (A_q/(π gap²) before: a cluster of boxes shows at most about a
-        // third of its area in any direction.)
-        let toward = (nq.centre - np.centre) / r;
-        let spread = ((np.radius + nq.radius) / r).min(1.0).asin();
-        let bound =
-            nq.projected_bound(-toward, spread) * cos_bound(np, toward, spread) / (PI * gap * gap);
+        };
         // The link's error is at least bound · B_q^max: where that alone is over the
         // tolerance the link opens whatever the samples say, so they are not taken (most wide
         // candidates; identical links, fewer rays).
@@ -1587,6 +1604,63 @@ mod tests {
     /// low while the 101 : 1 floor split into ever thinner 101 : 1 slivers, 0.1 % off since
     /// it splits across its length ([`tree::split_polygon`]). Tolerance 2 %: ε = 0.02 of the
     /// floor's irradiance per link.
+    /// The wide links' bound ([`Hierarchical::wide_bound`]) is an upper bound: in a
+    /// furnished room, for node pairs all over its hierarchy (clusters and polygons), the
+    /// exact unoccluded irradiance per unit radiosity of the source, Σ over its polygons of
+    /// the point-to-polygon form factor, at 16 sample points of the receiver with their own
+    /// normals never exceeds it (1e-9 relative: rounding). Somewhere it is nearly reached
+    /// (measured 0.99 of it; asserted above half: it is not vacuous).
+    #[test]
+    fn the_wide_link_bound_holds_at_every_receiver_point() {
+        let scene = crate::generate::furnished_room(12, 7);
+        let h = Hierarchical::new(
+            &scene,
+            crate::formfactor::FormFactorMethod::Raycast.kernel(),
+            HierarchicalOptions::default(),
+        )
+        .unwrap();
+        let tree = h.tree();
+        let nodes = tree.nodes.len() as u32;
+        let members = |q: u32| -> Vec<u32> {
+            let (lo, hi) = tree.nodes[q as usize].leaves;
+            (lo..hi)
+                .map(|pos| tree.inputs[tree.leaf_order[pos as usize] as usize].node)
+                .collect()
+        };
+        let (mut checked, mut tightest) = (0, 0.0f64);
+        for p in (0..nodes).step_by(3) {
+            for q in (1..nodes).step_by(7) {
+                let Some(bound) = h.wide_bound(p, q) else {
+                    continue;
+                };
+                let sources = members(q);
+                if sources.len() > 48 {
+                    continue;
+                }
+                for (x, n) in tree.sample_points(p, 16) {
+                    let irradiance: f64 = sources
+                        .iter()
+                        .map(|&s| {
+                            let polygon = tree.polygon(s);
+                            let normal = tree.nodes[s as usize].axis;
+                            point_to_polygon(x, n, polygon, normal)
+                        })
+                        .sum();
+                    assert!(
+                        irradiance <= bound * (1.0 + 1e-9),
+                        "nodes {p} ← {q}: {irradiance} at {x} above the bound {bound}"
+                    );
+                    if bound > 0.0 {
+                        tightest = tightest.max(irradiance / bound);
+                    }
+                }
+                checked += 1;
+            }
+        }
+        assert!(checked > 1000, "only {checked} pairs");
+        assert!(tightest > 0.5, "the bound is never approached: {tightest}");
+    }
+
     #[test]
     fn light_reaches_the_part_of_a_polygon_in_front_of_its_source_whatever_its_samples_see() {
         let v = |x: f64, y: f64, z: f64| DVec3::new(x, y, z);

@@ -67,6 +67,8 @@ pub struct Node {
     pub centre: DVec3,
     /// Radius of a sphere about `centre` holding the node, m.
     pub radius: f64,
+    /// Corners of the node's axis-aligned bounding box, m.
+    pub bounds: [DVec3; 2],
     /// Unit axis of the normal cone (the polygon's normal for polygon nodes).
     pub axis: DVec3,
     /// Cosine of the normal cone's half-angle: 1 for a polygon, −1 when the normals span
@@ -270,6 +272,11 @@ impl Tree {
             facing: facing(normal, area),
             centre,
             radius,
+            bounds: vertices
+                .iter()
+                .fold([DVec3::INFINITY, DVec3::NEG_INFINITY], |[lo, hi], v| {
+                    [lo.min(*v), hi.max(*v)]
+                }),
             axis: normal,
             cone_cos: 1.0,
             depth,
@@ -308,8 +315,14 @@ impl Tree {
             let between = axis.dot(c.axis).clamp(-1.0, 1.0).acos();
             half = half.max(between + child_half);
         }
+        let bounds = children
+            .iter()
+            .fold([DVec3::INFINITY, DVec3::NEG_INFINITY], |[lo, hi], c| {
+                [lo.min(c.bounds[0]), hi.max(c.bounds[1])]
+            });
         let node = &mut self.nodes[i];
         node.kind = Kind::Cluster;
+        node.bounds = bounds;
         node.area = area;
         node.vector_area = vector_area;
         node.facing = facing;
@@ -441,6 +454,7 @@ fn placeholder() -> Node {
         facing: [0.0; 6],
         centre: DVec3::ZERO,
         radius: 0.0,
+        bounds: [DVec3::ZERO; 2],
         axis: DVec3::Z,
         cone_cos: 1.0,
         depth: 0,
