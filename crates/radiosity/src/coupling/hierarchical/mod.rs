@@ -981,13 +981,14 @@ impl Hierarchical {
     /// `q` (visibility ignored), or `None` where the two touch: P_q cos_p / (π d²), with d
     /// the larger of the distance between their bounding boxes and their bounding spheres'
     /// gap (each at most that between any two of their points; the boxes' is often much
-    /// more: a row of boxes is long and low), P_q the bound of the source's projected area over the directions between
-    /// the two ([`tree::Node::projected_bound`]: within α = asin((r_p + r_q)/r) of the line
-    /// of centres where the bounding spheres are apart, any direction where they overlap)
-    /// and cos_p that of the receiver's normal cone's nearest approach to them
-    /// ([`cos_bound`]). (A_q/(π gap²) with the spheres' gap before: a cluster of boxes shows
-    /// at most about a third of its area in any direction; the boxes' distance cut the links
-    /// of the furnished rooms of the scale benchmark by 28 % at 100 objects and 39 % at 300.)
+    /// more: a row of boxes is long and low), P_q the bound of the source's projected area
+    /// over the directions between the two ([`tree::Node::projected_bound`]: within
+    /// α = asin((r_p + r_q)/r) of the line of centres where the bounding spheres are apart,
+    /// any direction where they overlap) and cos_p that of the receiver's normal cone's
+    /// nearest approach to them ([`cos_bound`]). (A_q/(π gap²) with the spheres' gap before:
+    /// a cluster of boxes shows at most about a third of its area in any direction; the
+    /// boxes' distance cut the links of the furnished rooms of the scale benchmark by 28 % at
+    /// 100 objects and 39 % at 300.)
     fn wide_bound(&self, p: u32, q: u32) -> Option<f64> {
         let (np, nq) = (&self.tree.nodes[p as usize], &self.tree.nodes[q as usize]);
         let [lo_p, hi_p] = np.bounds;
@@ -1595,15 +1596,6 @@ mod tests {
         }
     }
 
-    /// A glowing 1 m square just above a floor that reaches 100 m behind its plane and 1 m in
-    /// front: the floor's Gauss points all lie behind the square, yet its front metre takes
-    /// E · F(square → that metre) (the exact polygon form factor; 0.2000 for two unit
-    /// squares at a right angle along a shared edge, less 5 cm up). Nothing else is in the
-    /// scene and ρ = 0, so that is all the power the floor gathers. Measured: nothing before
-    /// a link whose receiver points saw nothing was split ([`Hierarchical::unseen`]), 6.7 %
-    /// low while the 101 : 1 floor split into ever thinner 101 : 1 slivers, 0.1 % off since
-    /// it splits across its length ([`tree::split_polygon`]). Tolerance 2 %: ε = 0.02 of the
-    /// floor's irradiance per link.
     /// The wide links' bound ([`Hierarchical::wide_bound`]) is an upper bound: in a
     /// furnished room, for node pairs all over its hierarchy (clusters and polygons), the
     /// exact unoccluded irradiance per unit radiosity of the source, Σ over its polygons of
@@ -1661,6 +1653,15 @@ mod tests {
         assert!(tightest > 0.5, "the bound is never approached: {tightest}");
     }
 
+    /// A glowing 1 m square just above a floor that reaches 100 m behind its plane and 1 m in
+    /// front: the floor's Gauss points all lie behind the square, yet its front metre takes
+    /// E · F(square → that metre) (the exact polygon form factor; 0.2000 for two unit
+    /// squares at a right angle along a shared edge, less 5 cm up). Nothing else is in the
+    /// scene and ρ = 0, so that is all the power the floor gathers. Measured: nothing before
+    /// a link whose receiver points saw nothing was split ([`Hierarchical::unseen`]), 6.7 %
+    /// low while the 101 : 1 floor split into ever thinner 101 : 1 slivers, 0.1 % off since
+    /// it splits across its length ([`tree::split_polygon`]). Tolerance 2 %: ε = 0.02 of the
+    /// floor's irradiance per link.
     #[test]
     fn light_reaches_the_part_of_a_polygon_in_front_of_its_source_whatever_its_samples_see() {
         let v = |x: f64, y: f64, z: f64| DVec3::new(x, y, z);
