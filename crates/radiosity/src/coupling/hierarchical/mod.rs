@@ -737,7 +737,7 @@ impl Hierarchical {
         let v = if self.clear(p, q) {
             1.0
         } else {
-            self.visible_fraction(&receiver.points, np.axis, source)
+            self.visible_fraction(&receiver.points, np.axis, source, 0)
         };
         let f = open * v;
         let (gradient, mut misfit) = affine_fit(&receiver.points, &values, np.axis);
@@ -811,19 +811,40 @@ impl Hierarchical {
     /// The fraction of `source` visible from the receiver points (weights summing to 1,
     /// normal `n`): a ray from every point to every sub-area of the source, weighted by the
     /// point kernel cos θ_x cos θ_y ΔA/(π r²) of the sub-area (after Wallace, Elmquist &
-    /// Haines 1989).
-    fn visible_fraction(&self, points: &[(DVec3, f64)], n: DVec3, source: &SourcePolygon) -> f64 {
+    /// Haines 1989). `salt` varies the quick pass's choice of sub-areas between calls that
+    /// pass one point each.
+    fn visible_fraction(
+        &self,
+        points: &[(DVec3, f64)],
+        n: DVec3,
+        source: &SourcePolygon,
+        salt: u64,
+    ) -> f64 {
         let count = source.sub_points.len();
         if count == 0 {
             return 1.0;
         }
-        // A ray from every point to every `stride`-th sub-area (offset per point, so every
-        // sub-area is used): cheap, and exact where all agree in a clear-cut case; where they
-        // disagree (a penumbra), every pair.
+        // Quick pass: from every point one ray into each run of `stride` consecutive
+        // sub-areas, at an offset hashed from the point and the run, so that together the
+        // points aim at every part of the source with no pattern that lines up with the
+        // source's lattice; exact where all agree in a clear-cut case. Where they disagree
+        // (a penumbra), every pair. (Every `stride`-th sub-area from the k-th point, as
+        // before, aimed each point at one column of a quad source's lattice: a shadow's edge
+        // along the columns could be missed by every point, and the Cornell box's floor
+        // read 1.3 % bright in direct light;
+        // `direct_light_on_the_cornell_floor_matches_a_brute_force_integral`.)
         let estimate = |stride: usize| {
             let (mut seen, mut all) = (0.0, 0.0);
             for (k, &(x, w)) in points.iter().enumerate() {
-                for j in (k % stride..count).step_by(stride) {
+                let aimed = (0..count.div_ceil(stride)).map(|run| {
+                    let offset = if stride == 1 {
+                        0
+                    } else {
+                        (mix(salt, k as u64, run as u64) % stride as u64) as usize
+                    };
+                    (run * stride + offset).min(count - 1)
+                });
+                for j in aimed {
                     let (y, area) = (source.sub_points[j], source.sub_area_sizes[j]);
                     let d = y - x;
                     let r2 = d.length_squared();
@@ -883,12 +904,12 @@ impl Hierarchical {
         let mut g = DVec3::ZERO;
         let (mut lo, mut hi) = (f64::INFINITY, 0.0f64);
         let weight = 1.0 / samples.len().max(1) as f64;
-        for &(x, n) in &samples {
+        for (i, &(x, n)) in samples.iter().enumerate() {
             let gamma = lambert_vector(x, &source.vertices);
             let seen = if clear {
                 1.0
             } else {
-                self.visible_fraction(&[(x, 1.0)], n, source)
+                self.visible_fraction(&[(x, 1.0)], n, source, i as u64)
             };
             let value = gamma.dot(np.axis) * seen;
             lo = lo.min(value);
@@ -1256,6 +1277,19 @@ fn cos_bound(node: &tree::Node, toward: DVec3, spread: f64) -> f64 {
     } else {
         apart.min(PI).cos().max(0.0)
     }
+}
+
+/// A well-mixed 64-bit hash of three integers (the SplitMix64 finaliser, Steele, Lea &
+/// Flood 2014, over their combination): deterministic, so the choice of rays does not depend
+/// on threads or on the order links are examined in.
+fn mix(a: u64, b: u64, c: u64) -> u64 {
+    let mut z = a
+        .wrapping_mul(0x9E37_79B9_7F4A_7C15)
+        .wrapping_add(b.wrapping_mul(0xC2B2_AE3D_27D4_EB4F))
+        .wrapping_add(c.wrapping_mul(0x1656_67B1_9E37_79F9));
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
 }
 
 /// Least-squares affine fit f(x) ≈ f̄ + g · (x − x̄) to point values over a planar receiver
