@@ -80,12 +80,14 @@ fn cornell_box_converges_to_mitsuba_as_epsilon_shrinks() {
         // solver's stopping rule.
         assert!(report.balance_error() < 1e-4, "{}", report.balance_error());
         // Tolerances, measured not tuned per polygon: at ε = 0.01 the mean per-polygon
-        // error is 1.3 % and the worst 5.6 % (the short block's side facing the green
-        // wall, lit through the narrow gap to the tall block); the bound allows the
-        // reference's own noise (≤ 0.5 %) on top. ε = 0.05 is coarse on purpose.
+        // error is 1.2 % and the worst 4.6 % (the short block's side facing the green
+        // wall, in the narrow channel between the block and the green wall; 6.0 % before
+        // the quick visibility pass stopped lining up with the source's lattice); the bound
+        // allows the reference's own noise (≤ 0.5 %) and 1 % more on top. ε = 0.05 is
+        // coarse on purpose.
         if epsilon == 0.01 {
             assert!(mean < 0.02, "mean {mean}");
-            assert!(worst.1 < 0.07, "{worst:?}");
+            assert!(worst.1 < 0.06, "{worst:?}");
         }
         means.push(mean);
     }
