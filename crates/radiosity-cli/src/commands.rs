@@ -170,8 +170,11 @@ pub(crate) fn run_solve(scene: &Scene, settings: &Settings, args: &SolveArgs) ->
         );
         if let Some(h) = &solved.hierarchy {
             eprintln!(
-                "hierarchy: {} links, {} nodes, link tolerance ε {}",
-                h.links, h.nodes, h.epsilon
+                "hierarchy: {} links, {} nodes, about {:.0} MiB, link tolerance ε {}",
+                h.links,
+                h.nodes,
+                h.bytes as f64 / f64::from(1 << 20),
+                h.epsilon
             );
             if h.capped {
                 eprintln!(

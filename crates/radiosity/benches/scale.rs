@@ -29,6 +29,8 @@ struct Row {
     nodes: usize,
     peak_mib: f64,
     escaped: f64,
+    /// The hierarchy's own estimate of its memory, MiB (what its memory limit checks).
+    estimate_mib: f64,
 }
 
 fn scene(family: &str, size: usize) -> Scene {
@@ -78,12 +80,13 @@ fn child(family: &str, size: usize) {
     let emitted = radiosity::solve::Solution::emitted_power(&solved.mesh);
     let escaped = solved.solution.escaped_power[1] / emitted[1];
     println!(
-        "ROW {family} {size} {triangles} {seconds} {} {} {} {} {}",
+        "ROW {family} {size} {triangles} {seconds} {} {} {} {} {} {}",
         solved.links,
         solved.mesh.elements.len(),
         solved.nodes,
         peak_mib(),
         escaped,
+        solved.bytes as f64 / f64::from(1 << 20),
     );
 }
 
@@ -105,6 +108,7 @@ fn run(family: &str, size: usize) -> Option<Row> {
         nodes: f[7].parse().ok()?,
         peak_mib: f[8].parse().ok()?,
         escaped: f[9].parse().ok()?,
+        estimate_mib: f[10].parse().ok()?,
     })
 }
 
@@ -152,8 +156,17 @@ fn main() {
         ),
     ];
     println!(
-        "{:8} {:>7} {:>10} {:>9} {:>10} {:>9} {:>10} {:>9} {:>10}",
-        "scene", "size", "triangles", "seconds", "links", "leaves", "nodes", "peak MiB", "escaped"
+        "{:8} {:>7} {:>10} {:>9} {:>10} {:>9} {:>10} {:>9} {:>12} {:>10}",
+        "scene",
+        "size",
+        "triangles",
+        "seconds",
+        "links",
+        "leaves",
+        "nodes",
+        "peak MiB",
+        "estimate MiB",
+        "escaped"
     );
     for (family, sizes) in families {
         if only.as_deref().is_some_and(|o| o != family) {
@@ -164,7 +177,7 @@ fn main() {
             match run(family, size) {
                 Some(r) => {
                     println!(
-                        "{:8} {:>7} {:>10} {:>9.2} {:>10} {:>9} {:>10} {:>9.0} {:>10.2e}",
+                        "{:8} {:>7} {:>10} {:>9.2} {:>10} {:>9} {:>10} {:>9.0} {:>12.0} {:>10.2e}",
                         r.family,
                         r.size,
                         r.triangles,
@@ -173,6 +186,7 @@ fn main() {
                         r.leaves,
                         r.nodes,
                         r.peak_mib,
+                        r.estimate_mib,
                         r.escaped
                     );
                     rows.push(r);

@@ -51,6 +51,9 @@ pub struct HierarchyStats {
     pub nodes: usize,
     /// Whether refinement stopped at the memory limit (the links are then coarser than ε).
     pub capped: bool,
+    /// The hierarchy's estimated memory, bytes: nodes, links and prepared sources, what the
+    /// memory limit is checked against.
+    pub bytes: u64,
 }
 
 /// Why solving failed.
@@ -107,6 +110,7 @@ pub fn solve_scene_observed(
                 links: solved.links,
                 nodes: solved.nodes,
                 capped: solved.capped,
+                bytes: solved.bytes,
             }),
         });
     }

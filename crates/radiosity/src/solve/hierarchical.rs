@@ -29,6 +29,9 @@ pub struct HierarchicalSolution {
     pub links: usize,
     /// Nodes of the hierarchy at the end.
     pub nodes: usize,
+    /// The hierarchy's estimated memory at the end, bytes ([`Hierarchical::bytes`]): what the
+    /// memory limit is checked against.
+    pub bytes: u64,
     /// Whether refinement stopped at the memory limit.
     pub capped: bool,
     /// Links accepted although their error exceeded the threshold (minimum area reached).
@@ -125,6 +128,7 @@ pub fn solve(
     Ok(HierarchicalSolution {
         links: h.link_count(),
         nodes: h.node_count(),
+        bytes: h.bytes(),
         capped: h.capped,
         forced: h.forced,
         mesh: h.mesh().clone(),
