@@ -19,7 +19,8 @@
 //!   (a cluster opens into its children, a polygon into sub-elements) down to a minimum
 //!   element area.
 //! - **Transfers**: polygon ← polygon by the form-factor kernel (receiver Gauss points ×
-//!   exact point-to-polygon × shadow rays); clusters whose normal cone faces the other end
+//!   exact point-to-polygon × each point's visible fraction by shadow rays, fitted as an
+//!   affine function over the receiver); clusters whose normal cone faces the other end
 //!   are *oriented* and exchange vector quantities — a source cluster by its vector exitance
 //!   M = Σ B_i A_i n_i, a receiving cluster by a vector irradiance e (member i receives
 //!   e · n_i) — exact for flat clusters (a tessellated wall behaves as the wall) and
@@ -759,12 +760,32 @@ impl Hierarchical {
         } else {
             self.kernel.form_factor(&receiver, source, &self.open)
         };
-        let v = if self.clear(p, q) {
-            1.0
+        // Visibility point by point: the transfer's mean is Σ w_k F_k v_k and its gradient
+        // is fitted to F_k v_k, so a link across a shadow's edge gives the lit part of its
+        // receiver more than the shadowed part. (One visible fraction for the whole
+        // receiver gave the dark floor strip beside the Cornell box's short block 22 % too
+        // much light from the right radiosities, and the block's side facing it read 4.6 %
+        // high at ε = 0.01, 1.9 % now.)
+        let seen: Vec<f64> = if self.clear(p, q) {
+            vec![1.0; values.len()]
         } else {
-            self.visible_fraction(&receiver.points, np.axis, source, 0)
+            self.visible_fractions(&receiver.points, np.axis, source, 0)
+                .iter()
+                .map(|&(v, _)| v)
+                .collect()
         };
+        let occluded: Vec<f64> = values.iter().zip(&seen).map(|(f, v)| f * v).collect();
+        let visible: f64 = receiver
+            .points
+            .iter()
+            .zip(&occluded)
+            .map(|((_, w), f)| w * f)
+            .sum();
+        let v = visible / unoccluded;
         let f = open * v;
+        let (gradient_seen, misfit_seen) = affine_fit(&receiver.points, &occluded, np.axis);
+        // The unoccluded fit, checked at the corners too: what the fit misses is the larger
+        // of its misfit (scaled to what is seen) and the occluded fit's.
         let (gradient, mut misfit) = affine_fit(&receiver.points, &values, np.axis);
         // The fit is used over the whole receiver: check it at the corners too, where it
         // extrapolates (and where a touching source makes the form factor change fastest).
@@ -781,10 +802,10 @@ impl Hierarchical {
         Estimate {
             transfer: Some(Transfer::Polygon {
                 f: f as f32,
-                gradient: (gradient * v).as_vec3().to_array(),
+                gradient: (gradient_seen * (open / unoccluded)).as_vec3().to_array(),
                 moment: moment.as_vec3().to_array(),
             }),
-            delta: misfit * v + partial,
+            delta: (misfit * v).max(misfit_seen) + partial,
             mean: f,
             source_dominates: false,
             must_open_p: false,
@@ -845,9 +866,32 @@ impl Hierarchical {
         source: &SourcePolygon,
         salt: u64,
     ) -> f64 {
+        let per_point = self.visible_fractions(points, n, source, salt);
+        let (mut seen, mut all) = (0.0, 0.0);
+        for (&(_, w), &(v, k)) in points.iter().zip(&per_point) {
+            seen += w * k * v;
+            all += w * k;
+        }
+        if all > 0.0 {
+            seen / all
+        } else {
+            1.0
+        }
+    }
+
+    /// [`Hierarchical::visible_fraction`] point by point: for each receiver point, the
+    /// fraction of the source it sees and the point kernel Σ cos θ_x cos θ_y ΔA/r² of the
+    /// sub-areas it was weighed over (its weight in the whole's fraction).
+    fn visible_fractions(
+        &self,
+        points: &[(DVec3, f64)],
+        n: DVec3,
+        source: &SourcePolygon,
+        salt: u64,
+    ) -> Vec<(f64, f64)> {
         let count = source.sub_points.len();
         if count == 0 {
-            return 1.0;
+            return vec![(1.0, 1.0); points.len()];
         }
         // Quick pass: from every point one ray into each run of `stride` consecutive
         // sub-areas, at an offset hashed from the point and the run, so that together the
@@ -859,8 +903,9 @@ impl Hierarchical {
         // read 1.3 % bright in direct light;
         // `direct_light_on_the_cornell_floor_matches_a_brute_force_integral`.)
         let estimate = |stride: usize| {
-            let (mut seen, mut all) = (0.0, 0.0);
-            for (k, &(x, w)) in points.iter().enumerate() {
+            let mut fractions = Vec::with_capacity(points.len());
+            for (k, &(x, _)) in points.iter().enumerate() {
+                let (mut seen, mut all) = (0.0, 0.0);
                 let aimed = (0..count.div_ceil(stride)).map(|run| {
                     let offset = if stride == 1 {
                         0
@@ -877,7 +922,7 @@ impl Hierarchical {
                         continue;
                     }
                     let u = d / r2.sqrt();
-                    let weight = w * n.dot(u).max(0.0) * source.normal.dot(-u).max(0.0) * area / r2;
+                    let weight = n.dot(u).max(0.0) * source.normal.dot(-u).max(0.0) * area / r2;
                     if weight <= 0.0 {
                         continue;
                     }
@@ -886,16 +931,23 @@ impl Hierarchical {
                         seen += weight;
                     }
                 }
+                fractions.push(if all > 0.0 {
+                    (
+                        seen / all,
+                        all * count as f64 / count.div_ceil(stride) as f64,
+                    )
+                } else {
+                    (1.0, 0.0)
+                });
             }
-            if all > 0.0 {
-                seen / all
-            } else {
-                1.0
-            }
+            fractions
         };
         let stride = (count / 4).max(1);
         let quick = estimate(stride);
-        if stride > 1 && quick > 0.0 && quick < 1.0 {
+        let partial = quick.iter().any(|&(v, k)| k > 0.0 && v > 0.0 && v < 1.0)
+            || (quick.iter().any(|&(v, k)| k > 0.0 && v == 0.0)
+                && quick.iter().any(|&(v, k)| k > 0.0 && v == 1.0));
+        if stride > 1 && partial {
             estimate(1)
         } else {
             quick
