@@ -743,12 +743,7 @@ impl Hierarchical {
             .iter()
             .map(|&(x, _)| point_to_polygon(x, np.axis, &source.vertices, source.normal))
             .collect();
-        let unoccluded: f64 = receiver
-            .points
-            .iter()
-            .zip(&values)
-            .map(|((_, w), f)| w * f)
-            .sum();
+        let unoccluded = weighted_mean(&receiver.points, &values);
         if unoccluded <= 0.0 {
             return self.unseen(p, q);
         }
@@ -775,20 +770,14 @@ impl Hierarchical {
                 .collect()
         };
         let occluded: Vec<f64> = values.iter().zip(&seen).map(|(f, v)| f * v).collect();
-        let visible: f64 = receiver
-            .points
-            .iter()
-            .zip(&occluded)
-            .map(|((_, w), f)| w * f)
-            .sum();
-        let v = visible / unoccluded;
+        let v = weighted_mean(&receiver.points, &occluded) / unoccluded;
         let f = open * v;
         let (gradient_seen, misfit_seen) = affine_fit(&receiver.points, &occluded, np.axis);
-        // The unoccluded fit, checked at the corners too: what the fit misses is the larger
-        // of its misfit (scaled to what is seen) and the occluded fit's.
+        // What the fit misses is the larger of the occluded fit's misfit and the unoccluded
+        // fit's (scaled to what is seen), which is checked at the corners too: the fit is
+        // used over the whole receiver, and at the corners it extrapolates (and a touching
+        // source makes the form factor change fastest).
         let (gradient, mut misfit) = affine_fit(&receiver.points, &values, np.axis);
-        // The fit is used over the whole receiver: check it at the corners too, where it
-        // extrapolates (and where a touching source makes the form factor change fastest).
         let centre: DVec3 = receiver.points.iter().map(|(x, w)| *x * *w).sum();
         for &corner in self.tree.polygon(p) {
             // Just inside the corner, off the source's plane where they touch.
@@ -1386,6 +1375,12 @@ fn mix(a: u64, b: u64, c: u64) -> u64 {
     z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
     z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
     z ^ (z >> 31)
+}
+
+/// Σ w_k f_k over receiver points (weights summing to 1): the mean of `values` over the
+/// receiver.
+fn weighted_mean(points: &[(DVec3, f64)], values: &[f64]) -> f64 {
+    points.iter().zip(values).map(|((_, w), f)| w * f).sum()
 }
 
 /// Least-squares affine fit f(x) ≈ f̄ + g · (x − x̄) to point values over a planar receiver
