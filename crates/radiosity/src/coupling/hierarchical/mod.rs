@@ -168,7 +168,7 @@ const DARK_FLOOR: f64 = 0.05;
 /// header and source cache slot, four vertices, and, as a leaf, its mesh element with its
 /// four vertices and the solver's six per-element vectors (radiosity, irradiance and the
 /// iterates). Sources' own points are counted as they are made ([`Hierarchical::bytes`]).
-/// (A flat 400 bytes before: measured peaks were 2–5 times the estimate, mostly the
+/// (A flat 400 bytes before: measured peaks were 4 to 8 times the estimate, mostly the
 /// sources' sub-areas, about 2.6 kB per polygon that has been a source.)
 const NODE_BYTES: u64 = (std::mem::size_of::<tree::Node>()
     + std::mem::size_of::<State>()
