@@ -843,44 +843,21 @@ impl Hierarchical {
         }
     }
 
-    /// The fraction of `source` visible from the receiver points (weights summing to 1,
-    /// normal `n`): a ray from every point to every sub-area of the source, weighted by the
-    /// point kernel cos θ_x cos θ_y ΔA/(π r²) of the sub-area (after Wallace, Elmquist &
-    /// Haines 1989). `salt` varies the quick pass's choice of sub-areas between calls that
-    /// pass one point each.
-    fn visible_fraction(
-        &self,
-        points: &[(DVec3, f64)],
-        n: DVec3,
-        source: &SourcePolygon,
-        salt: u64,
-    ) -> f64 {
-        let per_point = self.visible_fractions(points, n, source, salt);
-        let (mut seen, mut all) = (0.0, 0.0);
-        for (&(_, w), &(v, k)) in points.iter().zip(&per_point) {
-            seen += w * k * v;
-            all += w * k;
-        }
-        if all > 0.0 {
-            seen / all
-        } else {
-            1.0
-        }
-    }
-
-    /// [`Hierarchical::visible_fraction`] point by point: for each receiver point, the
-    /// fraction of the source it sees and the point kernel Σ cos θ_x cos θ_y ΔA/r² of the
-    /// sub-areas it was weighed over (its weight in the whole's fraction).
+    /// For each receiver point (normal `n`), the fraction of `source` it sees: rays to the
+    /// source's sub-areas, each weighted by its point kernel cos θ_x cos θ_y ΔA/(π r²)
+    /// (after Wallace, Elmquist & Haines 1989), and whether any sub-area faced the point
+    /// (one that faces none sees all of nothing: 1). `salt` varies the quick pass's choice
+    /// of sub-areas between calls that pass one point each.
     fn visible_fractions(
         &self,
         points: &[(DVec3, f64)],
         n: DVec3,
         source: &SourcePolygon,
         salt: u64,
-    ) -> Vec<(f64, f64)> {
+    ) -> Vec<(f64, bool)> {
         let count = source.sub_points.len();
         if count == 0 {
-            return vec![(1.0, 1.0); points.len()];
+            return vec![(1.0, true); points.len()];
         }
         // Quick pass: from every point one ray into each run of `stride` consecutive
         // sub-areas, at an offset hashed from the point and the run, so that together the
@@ -921,21 +898,18 @@ impl Hierarchical {
                     }
                 }
                 fractions.push(if all > 0.0 {
-                    (
-                        seen / all,
-                        all * count as f64 / count.div_ceil(stride) as f64,
-                    )
+                    (seen / all, true)
                 } else {
-                    (1.0, 0.0)
+                    (1.0, false)
                 });
             }
             fractions
         };
         let stride = (count / 4).max(1);
         let quick = estimate(stride);
-        let partial = quick.iter().any(|&(v, k)| k > 0.0 && v > 0.0 && v < 1.0)
-            || (quick.iter().any(|&(v, k)| k > 0.0 && v == 0.0)
-                && quick.iter().any(|&(v, k)| k > 0.0 && v == 1.0));
+        let partial = quick.iter().any(|&(v, faced)| faced && v > 0.0 && v < 1.0)
+            || (quick.iter().any(|&(v, faced)| faced && v == 0.0)
+                && quick.iter().any(|&(v, faced)| faced && v == 1.0));
         if stride > 1 && partial {
             estimate(1)
         } else {
@@ -975,7 +949,7 @@ impl Hierarchical {
             let seen = if clear {
                 1.0
             } else {
-                self.visible_fraction(&[(x, 1.0)], n, source, i as u64)
+                self.visible_fractions(&[(x, 1.0)], n, source, i as u64)[0].0
             };
             let value = gamma.dot(np.axis) * seen;
             lo = lo.min(value);
