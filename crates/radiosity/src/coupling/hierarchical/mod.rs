@@ -297,7 +297,7 @@ impl Hierarchical {
         // Contact lines split the inputs, as for the classic mesh: no node straddles the
         // lit/dark discontinuity where a block stands on a floor.
         let pieces: Vec<(usize, Polygon)> = crate::mesh::split_at_contacts(scene);
-        let inputs: Vec<(Polygon, InputPolygon)> = pieces
+        let mut inputs: Vec<(Polygon, InputPolygon)> = pieces
             .into_iter()
             .map(|(i, poly)| {
                 let s = &scene.surfaces[i];
@@ -310,6 +310,7 @@ impl Hierarchical {
                         reflectance: m.reflectance,
                         exitance: m.exitance(),
                         node: NONE,
+                        buried: false,
                     },
                 )
             })
@@ -320,6 +321,14 @@ impl Hierarchical {
         };
         let visibility =
             Visibility::from_polygons(inputs.iter().map(|(p, _)| p.vertices()), diameter);
+        let normals: Vec<DVec3> = inputs.iter().map(|(p, _)| p.normal()).collect();
+        let buried: Vec<bool> = inputs
+            .par_iter()
+            .map(|(polygon, _)| buried(polygon, &visibility, &normals))
+            .collect();
+        for ((_, input), buried) in inputs.iter_mut().zip(buried) {
+            input.buried = buried;
+        }
         let tree = Tree::build(inputs);
         let total_area = tree.area_prefix.last().copied().unwrap_or(0.0);
         let mut emitted_rgb = [0.0; 3];
@@ -579,6 +588,10 @@ impl Hierarchical {
         at_cap: bool,
     ) -> Decision {
         let (np, nq) = (&self.tree.nodes[p as usize], &self.tree.nodes[q as usize]);
+        // Buried polygons neither receive nor give light.
+        if self.tree.is_buried(p) || self.tree.is_buried(q) {
+            return Decision::Drop;
+        }
         if p == q {
             return if np.is_polygon() {
                 Decision::Drop // a planar polygon does not see itself
@@ -1395,6 +1408,39 @@ fn cos_bound(node: &tree::Node, toward: DVec3, spread: f64) -> f64 {
     } else {
         apart.min(PI).cos().max(0.0)
     }
+}
+
+/// Whether `polygon` sees nothing but the backs of surfaces (a floor piece under a box that
+/// stands on it, the ceiling inside a luminaire's housing): rays from five points of it
+/// (its centroid and halfway to four of its vertices), along its normal and in 16 directions
+/// 45° and 75° from it, all meet a surface from behind. One ray that leaves the scene or
+/// meets a surface's front is enough to tell it is not. (An opening too small for those 85
+/// rays to find is taken as closed: what comes through it is as small.)
+/// `normals` are those of the polygons `visibility` was built from.
+fn buried(polygon: &Polygon, visibility: &Visibility, normals: &[DVec3]) -> bool {
+    let vertices = polygon.vertices();
+    let normal = polygon.normal();
+    let centre = polygon.centroid();
+    let (t, b) = normal.any_orthonormal_pair();
+    let corners = (0..4).map(|k| vertices[k * vertices.len() / 4]);
+    let points = std::iter::once(centre).chain(corners.map(|v| centre + (v - centre) * 0.5));
+    let directions: Vec<DVec3> = std::iter::once(normal)
+        .chain([45.0f64, 75.0].into_iter().flat_map(|tilt| {
+            let (sin, cos) = tilt.to_radians().sin_cos();
+            (0..8).map(move |k| {
+                let phi = f64::from(k) * PI / 4.0;
+                normal * cos + (t * phi.cos() + b * phi.sin()) * sin
+            })
+        }))
+        .collect();
+    points.into_iter().all(|x| {
+        let origin = (x + normal * visibility.offset()).as_vec3();
+        directions.iter().all(|&d| {
+            visibility
+                .first_hit(origin, d.as_vec3())
+                .is_some_and(|hit| normals[visibility.polygon_of(hit.triangle)].dot(d) > 0.0)
+        })
+    })
 }
 
 /// A lower bound of the distance between any point of node `a` and any point of node `b`:

@@ -24,6 +24,10 @@ pub struct InputPolygon {
     pub exitance: [f64; 3],
     /// Its node.
     pub node: u32,
+    /// Whether it sees nothing but the backs of other surfaces (floor under a box standing
+    /// on it): it can neither receive nor give light, and the tree keeps it apart from the
+    /// rest so that no cluster link spreads light onto it ([`Tree::build`]).
+    pub buried: bool,
 }
 
 /// What a node is.
@@ -142,6 +146,9 @@ pub struct Tree {
     pub area_prefix: Vec<f64>,
     /// Position of each input polygon in `leaf_order`.
     pub leaf_position: Vec<u32>,
+    /// Position in `leaf_order` from which the input polygons are buried (their subtree's
+    /// leaves; `inputs.len()` when none is).
+    pub buried_from: u32,
 }
 
 /// Leaves per cluster-tree leaf: one input polygon each, so links can stop at any polygon.
@@ -151,6 +158,11 @@ const BINS: usize = 16;
 const ORIENTATION_WEIGHT: f64 = 2.0;
 
 impl Tree {
+    /// Whether node `node` holds only buried input polygons (or pieces of one).
+    pub fn is_buried(&self, node: u32) -> bool {
+        self.nodes[node as usize].leaves.0 >= self.buried_from
+    }
+
     /// The vertices of a polygon node.
     pub fn polygon(&self, node: u32) -> &[DVec3] {
         let n = &self.nodes[node as usize];
@@ -162,6 +174,10 @@ impl Tree {
     /// axes and one split by orientation, with cost Σ_c SA(c)/SA · n_c · (1 + λ(1 − |N_c|/A_c))
     /// (N the vector area, λ = [`ORIENTATION_WEIGHT`]), so that opposite walls and the faces of
     /// a box end up in different subtrees and most clusters have narrow normal cones.
+    /// Buried polygons ([`InputPolygon::buried`]) form a subtree of their own under the root:
+    /// a cluster's links give every member the same light, and a floor piece under a box in
+    /// a cluster with the floor around it would get the light of the floor around it (in the
+    /// furnished rooms of the scale benchmark, light that went nowhere after).
     pub fn build(polygons: Vec<(Polygon, InputPolygon)>) -> Tree {
         let mut tree = Tree::default();
         let count = polygons.len();
@@ -192,6 +208,8 @@ impl Tree {
         if count == 0 {
             return tree;
         }
+        // The buried last; the root's split is between them and the rest.
+        let open = partition(&mut items, |it| !tree.inputs[it.input as usize].buried);
         // Build top-down with an explicit stack: (items range, parent, slot for this node).
         tree.nodes.push(placeholder());
         let mut stack: Vec<(usize, usize, u32)> = vec![(0, count, 0)];
@@ -209,8 +227,11 @@ impl Tree {
                 tree.inputs[item.input as usize].node = index;
                 continue;
             }
-            let split = best_split(slice, |it| (it.centroid, it.lo, it.hi, it.area, it.normal));
-            let mid = start + split;
+            let mid = if index == 0 && open > 0 && open < count {
+                open
+            } else {
+                start + best_split(slice, |it| (it.centroid, it.lo, it.hi, it.area, it.normal))
+            };
             let first = tree.nodes.len() as u32;
             tree.nodes.push(placeholder());
             tree.nodes.push(placeholder());
@@ -226,6 +247,7 @@ impl Tree {
             stack.push((mid, end, first + 1));
             stack.push((start, mid, first));
         }
+        tree.buried_from = open as u32;
         tree.leaf_order = items.iter().map(|it| it.input).collect();
         tree.leaf_position = vec![0; count];
         for (pos, &input) in tree.leaf_order.iter().enumerate() {
