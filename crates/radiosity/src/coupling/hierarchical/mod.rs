@@ -297,6 +297,8 @@ impl Hierarchical {
         // Contact lines split the inputs, as for the classic mesh: no node straddles the
         // lit/dark discontinuity where a block stands on a floor.
         let pieces: Vec<(usize, Polygon)> = crate::mesh::split_at_contacts(scene);
+        let twinned = back_to_back(scene);
+        let two_faced: Vec<bool> = pieces.iter().map(|(i, _)| twinned[*i]).collect();
         let mut inputs: Vec<(Polygon, InputPolygon)> = pieces
             .into_iter()
             .map(|(i, poly)| {
@@ -324,7 +326,7 @@ impl Hierarchical {
         let normals: Vec<DVec3> = inputs.iter().map(|(p, _)| p.normal()).collect();
         let buried: Vec<bool> = inputs
             .par_iter()
-            .map(|(polygon, _)| buried(polygon, &visibility, &normals))
+            .map(|(polygon, _)| buried(polygon, &visibility, &normals, &two_faced))
             .collect();
         for ((_, input), buried) in inputs.iter_mut().zip(buried) {
             input.buried = buried;
@@ -1416,8 +1418,15 @@ fn cos_bound(node: &tree::Node, toward: DVec3, spread: f64) -> f64 {
 /// 45° and 75° from it, all meet a surface from behind. One ray that leaves the scene or
 /// meets a surface's front is enough to tell it is not. (An opening too small for those 85
 /// rays to find is taken as closed: what comes through it is as small.)
-/// `normals` are those of the polygons `visibility` was built from.
-fn buried(polygon: &Polygon, visibility: &Visibility, normals: &[DVec3]) -> bool {
+/// `normals` are those of the polygons `visibility` was built from, and `two_faced` says which
+/// of them has a back-to-back twin (a two-sided surface: met from behind, its twin's front is
+/// met, whichever of the two the ray reports).
+fn buried(
+    polygon: &Polygon,
+    visibility: &Visibility,
+    normals: &[DVec3],
+    two_faced: &[bool],
+) -> bool {
     let vertices = polygon.vertices();
     let normal = polygon.normal();
     let centre = polygon.centroid();
@@ -1438,9 +1447,39 @@ fn buried(polygon: &Polygon, visibility: &Visibility, normals: &[DVec3]) -> bool
         directions.iter().all(|&d| {
             visibility
                 .first_hit(origin, d.as_vec3())
-                .is_some_and(|hit| normals[visibility.polygon_of(hit.triangle)].dot(d) > 0.0)
+                .is_some_and(|hit| {
+                    let j = visibility.polygon_of(hit.triangle);
+                    !two_faced[j] && normals[j].dot(d) > 0.0
+                })
         })
     })
+}
+
+/// Which of the scene's surfaces have a back-to-back twin: the same vertices in reverse
+/// order (how [`crate::mesh::two_sided::with_back_sides`] makes a two-sided surface's back).
+fn back_to_back(scene: &Scene) -> Vec<bool> {
+    let key = |vertices: &[DVec3]| {
+        let mut bits: Vec<[u64; 3]> = vertices
+            .iter()
+            .map(|v| v.to_array().map(f64::to_bits))
+            .collect();
+        bits.sort_unstable();
+        bits
+    };
+    let mut seen: HashMap<Vec<[u64; 3]>, Vec<usize>> = HashMap::new();
+    for (i, s) in scene.surfaces.iter().enumerate() {
+        seen.entry(key(s.polygon.vertices())).or_default().push(i);
+    }
+    let mut twinned = vec![false; scene.surfaces.len()];
+    for group in seen.values() {
+        for &a in group {
+            let n = scene.surfaces[a].polygon.normal();
+            twinned[a] = group
+                .iter()
+                .any(|&b| scene.surfaces[b].polygon.normal().dot(n) < 0.0);
+        }
+    }
+    twinned
 }
 
 /// A lower bound of the distance between any point of node `a` and any point of node `b`:
