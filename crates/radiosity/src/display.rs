@@ -280,9 +280,82 @@ impl DisplayMesh {
 
 /// Which elements have a back-to-back twin: another element at the same place (centres
 /// within 10⁻⁹ of the scene's size) facing the opposite way, as meshing makes for two-sided
-/// surfaces (see [`crate::mesh`]). Seen from behind, such an element is left out of the image
-/// so that its twin, which faces the viewer, shows ([`DisplayMesh::shaded_triangles`]).
-pub fn back_to_back(elements: &[Element]) -> Vec<bool> {
+/// surfaces (see [`crate::mesh`]), or, where the two sides are meshed apart (the hierarchical
+/// solver refines each side as its light asks), an element facing the opposite way in the
+/// same plane that covers its centre. Seen from behind, such an element is left out of the
+/// image so that the side facing the viewer shows ([`DisplayMesh::shaded_triangles`]).
+pub fn back_to_back(vertices: &[DVec3], elements: &[Element]) -> Vec<bool> {
+    let mut out = coincident_twins(elements);
+    if out.iter().all(|&t| t) {
+        return out;
+    }
+    covered_from_behind(vertices, elements, &mut out);
+    out
+}
+
+/// Marks the elements whose centre lies on an element facing the opposite way in the same
+/// plane (within 10⁻⁹ of the scene's size), through a grid of cells the size of the median
+/// element: each element is listed in the cells its bounding box meets (elements spanning
+/// more than 16 cells a side are checked for every element instead).
+fn covered_from_behind(vertices: &[DVec3], elements: &[Element], out: &mut [bool]) {
+    let (lo, hi) = vertices.iter().fold(
+        (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+        |(lo, hi), v| (lo.min(*v), hi.max(*v)),
+    );
+    let tol = 1e-9 * (hi - lo).length().max(1e-9);
+    let mut areas: Vec<f64> = elements.iter().map(|e| e.area).collect();
+    areas.sort_unstable_by(f64::total_cmp);
+    let cell = areas[areas.len() / 2].sqrt().max(1e3 * tol);
+    let index = |p: DVec3| ((p - lo) / cell).floor().as_ivec3();
+    let mut grid: HashMap<glam::IVec3, Vec<u32>> = HashMap::new();
+    let mut large: Vec<u32> = Vec::new();
+    for (j, e) in elements.iter().enumerate() {
+        let (a, b) = e.corners.iter().fold(
+            (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+            |(a, b), &v| (a.min(vertices[v as usize]), b.max(vertices[v as usize])),
+        );
+        let (a, b) = (index(a - tol), index(b + tol));
+        if (b - a).max_element() > 16 {
+            large.push(j as u32);
+            continue;
+        }
+        for x in a.x..=b.x {
+            for y in a.y..=b.y {
+                for z in a.z..=b.z {
+                    grid.entry(glam::IVec3::new(x, y, z))
+                        .or_default()
+                        .push(j as u32);
+                }
+            }
+        }
+    }
+    let covers = |j: usize, e: &Element| {
+        let f = &elements[j];
+        if f.normal.dot(e.normal) >= -0.999_999 || f.normal.dot(e.centre - f.centre).abs() > tol {
+            return false;
+        }
+        let n = f.corners.len();
+        (0..n).all(|k| {
+            let (p, q) = (
+                vertices[f.corners[k] as usize],
+                vertices[f.corners[(k + 1) % n] as usize],
+            );
+            (q - p).cross(e.centre - p).dot(f.normal) >= -tol * (q - p).length()
+        })
+    };
+    for (i, e) in elements.iter().enumerate() {
+        if out[i] {
+            continue;
+        }
+        let near = grid.get(&index(e.centre)).into_iter().flatten();
+        out[i] = near
+            .chain(&large)
+            .any(|&j| j as usize != i && covers(j as usize, e));
+    }
+}
+
+/// Elements with a back-to-back twin at the same place (see [`back_to_back`]).
+fn coincident_twins(elements: &[Element]) -> Vec<bool> {
     let mut out = vec![false; elements.len()];
     if elements.is_empty() {
         return out;

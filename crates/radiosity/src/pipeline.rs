@@ -263,7 +263,7 @@ pub fn render_elements(
     options: &RenderOptions,
 ) -> Result<Image, PipelineError> {
     let display = DisplayMesh::build(shaded.vertices, shaded.elements, shaded.radiosity, shading);
-    let twinned = crate::display::back_to_back(shaded.elements);
+    let twinned = crate::display::back_to_back(shaded.vertices, shaded.elements);
     let triangles = display.shaded_triangles(shaded.elements, &|e| twinned[e], camera.eye);
     let edges = if wireframe {
         crate::display::element_edges(shaded.vertices, shaded.elements)
