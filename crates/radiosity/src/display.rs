@@ -303,13 +303,43 @@ fn covered_from_behind(vertices: &[DVec3], elements: &[Element], out: &mut [bool
         |(lo, hi), v| (lo.min(*v), hi.max(*v)),
     );
     let tol = 1e-9 * (hi - lo).length().max(1e-9);
-    let mut areas: Vec<f64> = elements.iter().map(|e| e.area).collect();
+    // Only elements whose plane also holds elements facing the other way can be covered:
+    // planes keyed by the normal up to its sign (components to 10⁻³) and the offset (to 10³
+    // tolerances), each side counted. Most scenes have no such plane, and stop here.
+    let plane = |e: &Element| {
+        let n = e.normal;
+        let first = [n.x, n.y, n.z]
+            .into_iter()
+            .find(|c| c.abs() > 1e-3)
+            .unwrap_or(1.0);
+        let (n, side) = if first > 0.0 { (n, 0) } else { (-n, 1) };
+        let key = (
+            (n.x * 1e3).round() as i64,
+            (n.y * 1e3).round() as i64,
+            (n.z * 1e3).round() as i64,
+            (n.dot(e.centre) / (1e3 * tol)).round() as i64,
+        );
+        (key, side)
+    };
+    let mut sides: HashMap<(i64, i64, i64, i64), [bool; 2]> = HashMap::new();
+    for e in elements {
+        let (key, side) = plane(e);
+        sides.entry(key).or_default()[side] = true;
+    }
+    let candidates: Vec<usize> = (0..elements.len())
+        .filter(|&i| sides[&plane(&elements[i]).0] == [true, true])
+        .collect();
+    if candidates.is_empty() {
+        return;
+    }
+    let mut areas: Vec<f64> = candidates.iter().map(|&i| elements[i].area).collect();
     areas.sort_unstable_by(f64::total_cmp);
     let cell = areas[areas.len() / 2].sqrt().max(1e3 * tol);
     let index = |p: DVec3| ((p - lo) / cell).floor().as_ivec3();
     let mut grid: HashMap<glam::IVec3, Vec<u32>> = HashMap::new();
     let mut large: Vec<u32> = Vec::new();
-    for (j, e) in elements.iter().enumerate() {
+    for &j in &candidates {
+        let e = &elements[j];
         let (a, b) = e.corners.iter().fold(
             (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
             |(a, b), &v| (a.min(vertices[v as usize]), b.max(vertices[v as usize])),
@@ -343,7 +373,8 @@ fn covered_from_behind(vertices: &[DVec3], elements: &[Element], out: &mut [bool
             (q - p).cross(e.centre - p).dot(f.normal) >= -tol * (q - p).length()
         })
     };
-    for (i, e) in elements.iter().enumerate() {
+    for &i in &candidates {
+        let e = &elements[i];
         if out[i] {
             continue;
         }
