@@ -10,10 +10,13 @@
 //!   by a downward spot the ceiling sees only reflected light, and at the default tolerance
 //!   the old rule (relative to the emitted power) left it 0.4 % short.
 
+mod common;
+
+use common::solve::solve;
 use radiosity::formfactor::FormFactorMethod;
 use radiosity::io::scene_file::parse_scene_file;
 use radiosity::mesh::MeshOptions;
-use radiosity::pipeline::{solve_scene, SolveSettings, Solved};
+use radiosity::pipeline::{solve_scene, SolveSettings};
 use radiosity::progress::NoProgress;
 use radiosity::report::Report;
 use radiosity::scene::Scene;
@@ -57,24 +60,6 @@ fn scene(json: String) -> Scene {
     parse_scene_file(&json, Path::new("closed_rooms.json"))
         .unwrap()
         .scene
-}
-
-/// Solves `scene` with `solver` (the default form factor) to the stopping `tolerance`; the
-/// classic solvers on about `elements` elements (the hierarchical solver makes its own).
-fn solve_with(scene: &Scene, solver: SolverKind, elements: usize, tolerance: f64) -> Solved {
-    let settings = SolveSettings {
-        mesh: MeshOptions {
-            elements,
-            ..MeshOptions::default()
-        },
-        solve: SolveOptions {
-            solver,
-            tolerance,
-            ..SolveOptions::default()
-        },
-        ..SolveSettings::default()
-    };
-    solve_scene(scene, &settings, &NoProgress).unwrap()
 }
 
 /// The 4 m cube, ρ = `rho`, each face cut 3 × 3 with the centre cell emitting 100 W.
@@ -231,7 +216,7 @@ fn nothing_escapes_a_furnished_closed_room() {
         SolverKind::GaussSeidel,
         SolverKind::Progressive,
     ] {
-        let solved = solve_with(&scene, solver, 2000, 1e-7);
+        let solved = solve(&scene, 2000, solver, 1e-7);
         let report = Report::new("room", &solved.mesh, &solved.solution, "raycast");
         let t = &report.totals;
         assert!((t.emitted_power[0] - power).abs() < 1e-9 * power);
@@ -264,7 +249,7 @@ fn at_the_default_tolerance_a_ceiling_lit_only_by_reflection_is_converged() {
         surfaces.join(",\n")
     ));
     let solve = |solver: SolverKind, tolerance: f64| {
-        let solved = solve_with(&scene, solver, 1000, tolerance);
+        let solved = solve(&scene, 1000, solver, tolerance);
         Report::new("room", &solved.mesh, &solved.solution, "raycast")
     };
     let reference = solve(SolverKind::GaussSeidel, 1e-10);
@@ -309,7 +294,7 @@ fn nothing_escapes_closed_rooms_with_the_hierarchical_solver() {
         ("cube", cube_with_face_centre_emitters(rho)),
         ("furnished", furnished(rho, &extra)),
     ] {
-        let solved = solve_with(&scene, SolverKind::Hierarchical, 2000, 1e-7);
+        let solved = solve(&scene, 2000, SolverKind::Hierarchical, 1e-7);
         let report = Report::new(name, &solved.mesh, &solved.solution, "raycast");
         let t = &report.totals;
         let worst_face = report
@@ -347,7 +332,7 @@ fn no_light_reaches_the_floor_under_a_box_or_leaves_a_furnished_room() {
     let mut extra = box_surfaces("on_floor", lo, hi);
     extra.remove(0); // no bottom
     let scene = furnished(rho, &extra);
-    let solved = solve_with(&scene, SolverKind::Hierarchical, 2000, 1e-7);
+    let solved = solve(&scene, 2000, SolverKind::Hierarchical, 1e-7);
     let under: Vec<f64> = solved
         .mesh
         .elements
@@ -381,7 +366,7 @@ fn a_furnished_room_of_the_scale_benchmark_keeps_its_light() {
     // strip above it; 1.0e-4 now (0.4 % at 100 and 300 objects); bound 1e-3.
     let scene = radiosity::generate::furnished_room(30, 1);
     let default_tolerance = SolveOptions::default().tolerance;
-    let solved = solve_with(&scene, SolverKind::Hierarchical, 2000, default_tolerance);
+    let solved = solve(&scene, 2000, SolverKind::Hierarchical, default_tolerance);
     let report = Report::new("room", &solved.mesh, &solved.solution, "raycast");
     let t = &report.totals;
     let escaped = t.escaped_power[1] / t.emitted_power[1];
@@ -418,7 +403,7 @@ fn a_two_sided_box_lights_the_floor_under_it() {
         surfaces.join(",\n")
     ));
     let floor = |solver: SolverKind| {
-        let solved = solve_with(&scene, solver, 2000, 1e-6);
+        let solved = solve(&scene, 2000, solver, 1e-6);
         let report = Report::new("dome", &solved.mesh, &solved.solution, "raycast");
         report.object("floor").unwrap().radiosity[0]
     };

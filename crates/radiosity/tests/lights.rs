@@ -6,36 +6,20 @@
 //! `radiosity::units`); with white light (R = G = B) the lux of an irradiance is
 //! 683 × its channel value, so lx·m² at distance r from a light is its intensity in cd.
 
+mod common;
+
+use common::solve::solve;
 use glam::DVec3;
 use radiosity::io::scene_file::{load_scene_file, parse_scene_file};
 use radiosity::measure::Gatherer;
-use radiosity::mesh::MeshOptions;
-use radiosity::pipeline::{solve_scene, SolveSettings, Solved};
-use radiosity::progress::NoProgress;
 use radiosity::report::Report;
 use radiosity::scene::Scene;
-use radiosity::solve::{SolveOptions, SolverKind};
+use radiosity::solve::SolverKind;
 use radiosity::units::lux_from_irradiance;
 use std::path::{Path, PathBuf};
 
 fn office_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/office")
-}
-
-fn solve(scene: &Scene, elements: usize, solver: SolverKind, tolerance: f64) -> Solved {
-    let settings = SolveSettings {
-        mesh: MeshOptions {
-            elements,
-            ..MeshOptions::default()
-        },
-        solve: SolveOptions {
-            solver,
-            tolerance,
-            ..SolveOptions::default()
-        },
-        ..SolveSettings::default()
-    };
-    solve_scene(scene, &settings, &NoProgress).unwrap()
 }
 
 /// A scene from scene-file JSON whose goniometric `file`s resolve in the office folder.

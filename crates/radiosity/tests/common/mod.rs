@@ -4,3 +4,5 @@
 // test does not use would otherwise warn (and fail `clippy --all-targets -D warnings`).
 #[allow(dead_code)]
 pub mod cie171;
+#[allow(dead_code)]
+pub mod solve;
