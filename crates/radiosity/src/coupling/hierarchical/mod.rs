@@ -297,7 +297,7 @@ impl Hierarchical {
         // Contact lines split the inputs, as for the classic mesh: no node straddles the
         // lit/dark discontinuity where a block stands on a floor.
         let pieces: Vec<(usize, Polygon)> = crate::mesh::split_at_contacts(scene);
-        let twinned = back_to_back(scene);
+        let twinned = twinned_surfaces(scene);
         let two_faced: Vec<bool> = pieces.iter().map(|(i, _)| twinned[*i]).collect();
         let mut inputs: Vec<(Polygon, InputPolygon)> = pieces
             .into_iter()
@@ -1457,7 +1457,7 @@ fn buried(
 
 /// Which of the scene's surfaces have a back-to-back twin: the same vertices in reverse
 /// order (how [`crate::mesh::two_sided::with_back_sides`] makes a two-sided surface's back).
-fn back_to_back(scene: &Scene) -> Vec<bool> {
+fn twinned_surfaces(scene: &Scene) -> Vec<bool> {
     let key = |vertices: &[DVec3]| {
         let mut bits: Vec<[u64; 3]> = vertices
             .iter()
