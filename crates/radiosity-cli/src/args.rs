@@ -55,7 +55,8 @@ pub enum Command {
 /// Options that decide how a scene is meshed and solved.
 #[derive(Debug, Clone, Args)]
 pub struct SolveArgs {
-    /// Maximum element edge length in metres (overrides --elements).
+    /// Maximum element edge length in metres (overrides --elements; the classic solvers'
+    /// mesh only: refused with --solver hierarchical).
     #[arg(long, value_name = "METRES", allow_hyphen_values = true)]
     pub max_element_size: Option<f64>,
     /// Approximate total number of elements [default: 4000]. With --solver hierarchical: no

@@ -346,6 +346,16 @@ pub fn resolve(
         solve.overshoot = w;
     }
     settings.solve.solve = solve;
+    // The hierarchical solver has no classic mesh to size: say so rather than ignore it.
+    if settings.solve.solve.solver == SolverKind::Hierarchical && flags.max_element_size.is_some() {
+        return Err(bad(
+            Origin::Flag("--max-element-size"),
+            "sizes the classic mesh and does not apply to the hierarchical solver, which \
+             refines where its links ask (--epsilon) down to 1/N of the total area \
+             (--elements N)"
+                .to_owned(),
+        ));
+    }
     if let Some(e) = number(
         Pick::new(name, "--epsilon", "epsilon", flags.epsilon, fs.epsilon),
         0.0,
@@ -601,5 +611,20 @@ mod tests {
         let s = resolve(None, &flags).unwrap();
         assert_eq!(s.solve.hierarchical.min_area_fraction, default_fraction);
         assert_eq!(s.solve.mesh.elements, 2000);
+    }
+
+    #[test]
+    fn max_element_size_is_refused_for_the_hierarchical_solver() {
+        // It sizes the classic mesh only; the hierarchical solver ignored it silently.
+        let flags = |solver| Overrides {
+            max_element_size: Some(0.1),
+            solver: Some(solver),
+            ..Default::default()
+        };
+        let e = resolve(None, &flags(SolverKind::Hierarchical)).unwrap_err();
+        assert_eq!(e.origin, Origin::Flag("--max-element-size"));
+        assert!(e.to_string().contains("hierarchical"), "{e}");
+        let s = resolve(None, &flags(SolverKind::Progressive)).unwrap();
+        assert_eq!(s.solve.mesh.max_element_size, Some(0.1));
     }
 }
