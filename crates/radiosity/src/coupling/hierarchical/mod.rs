@@ -792,14 +792,7 @@ impl Hierarchical {
         // to 0.3.) Such a receiver opens first, before any ray is cast.
         let spacing = 2.0 * np.radius / order as f64;
         if spacing > nq.radius.max(node_gap(np, nq)) && self.divisible(p) {
-            return Estimate {
-                transfer: None,
-                delta: f64::INFINITY,
-                mean: 0.0,
-                source_dominates: false,
-                must_open_p: true,
-                must_open_q: false,
-            };
+            return Estimate::refused(true, false);
         }
         let receiver = Receiver::polygon(self.tree.polygon(p).to_vec(), order);
         let source = self.source(q);
@@ -1142,14 +1135,7 @@ impl Hierarchical {
         refuse_above: Option<&[f64; 3]>,
     ) -> Estimate {
         let nq = &self.tree.nodes[q as usize];
-        let must = Estimate {
-            transfer: None,
-            delta: f64::INFINITY,
-            mean: 0.0,
-            source_dominates: open_q && !open_p,
-            must_open_p: open_p,
-            must_open_q: open_q,
-        };
+        let must = Estimate::refused(open_p, open_q);
         // A wide receiving cluster opens where the two touch: spread uniformly, its members
         // facing the source and those facing away would read the same irradiance.
         let Some(bound) = self.wide_bound(p, q) else {
@@ -1362,9 +1348,7 @@ impl Route {
             transfer: Some(link.transfer),
             delta: f64::from(link.delta),
             mean: f64::from(link.mean),
-            source_dominates: open_q && !open_p,
-            must_open_p: open_p,
-            must_open_q: open_q,
+            ..Estimate::refused(open_p, open_q)
         }
     }
 }
@@ -1380,6 +1364,18 @@ struct Estimate {
 }
 
 impl Estimate {
+    /// No transfer: the ends marked must open (the source when only it is marked).
+    fn refused(open_p: bool, open_q: bool) -> Self {
+        Self {
+            transfer: None,
+            delta: f64::INFINITY,
+            mean: 0.0,
+            source_dominates: open_q && !open_p,
+            must_open_p: open_p,
+            must_open_q: open_q,
+        }
+    }
+
     fn zero() -> Self {
         Self {
             transfer: Some(Transfer::Polygon {
