@@ -358,16 +358,17 @@ impl Bvh {
         self.occluded(a, b - a, eps, 1.0 - eps)
     }
 
-    /// Whether some triangle for which `counts(triangle)` holds may lie within distance
-    /// `radius` of the segment `a`–`b` (a capsule holding the convex hull of two spheres of at
-    /// most that radius about the ends: a conservative shaft). Boxes and triangles are tested
-    /// by their bounding spheres, so a `false` is certain and a `true` only possible.
+    /// Whether some triangle for which `counts(triangle, vertices)` holds may lie within
+    /// distance `radius` of the segment `a`–`b` (a capsule holding the convex hull of two
+    /// spheres of at most that radius about the ends: a conservative shaft). Boxes and
+    /// triangles are tested by their bounding spheres, so a `false` is certain and a `true`
+    /// only possible.
     pub fn capsule_hits(
         &self,
         a: Vec3,
         b: Vec3,
         radius: f32,
-        counts: &dyn Fn(u32) -> bool,
+        counts: &dyn Fn(u32, &[Vec3; 3]) -> bool,
     ) -> bool {
         let seg = b - a;
         let len2 = seg.length_squared();
@@ -406,7 +407,7 @@ impl Bvh {
                             tri[0].min(tri[1]).min(tri[2]),
                             tri[0].max(tri[1]).max(tri[2]),
                         );
-                        if near(tmin, tmax) && counts(ids[lane]) {
+                        if near(tmin, tmax) && counts(ids[lane], &tri) {
                             return true;
                         }
                     }
@@ -994,21 +995,22 @@ impl Visibility {
         }
     }
 
-    /// Whether some surface other than those `exclude` accepts (by polygon index) may lie in
-    /// the capsule of `radius` (m) about the segment `a`–`b`: a conservative test that
-    /// nothing can block light between two spheres (see [`Bvh::capsule_hits`]).
+    /// Whether some surface triangle other than those `exclude` accepts (by polygon index and
+    /// vertices) may lie in the capsule of `radius` (m) about the segment `a`–`b`: a
+    /// conservative test that nothing can block light between two spheres (see
+    /// [`Bvh::capsule_hits`]).
     pub fn maybe_blocked(
         &self,
         a: DVec3,
         b: DVec3,
         radius: f64,
-        exclude: &dyn Fn(usize) -> bool,
+        exclude: &dyn Fn(usize, &[Vec3; 3]) -> bool,
     ) -> bool {
         self.bvh.capsule_hits(
             a.as_vec3(),
             b.as_vec3(),
             (radius * (1.0 + 1e-6) + self.offset) as f32,
-            &|t| !exclude(self.triangle_polygon[t as usize] as usize),
+            &|t, tri| !exclude(self.triangle_polygon[t as usize] as usize, tri),
         )
     }
 

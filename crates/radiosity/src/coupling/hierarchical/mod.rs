@@ -977,17 +977,52 @@ impl Hierarchical {
 
     /// Whether nothing but the two nodes' own polygons can be in the way between them: no
     /// other surface within the capsule about their centres of their larger bounding radius
-    /// ([`Visibility::maybe_blocked`]). Then visibility is certain and no ray is needed;
-    /// otherwise rays sample it densely (few rays agreeing would be no proof).
+    /// ([`Visibility::maybe_blocked`]) that could cross a segment between them. Then
+    /// visibility is certain and no ray is needed; otherwise rays sample it densely (few rays
+    /// agreeing would be no proof).
+    ///
+    /// A triangle cannot cross a segment between the two nodes when it lies outside their
+    /// joint bounding box, or wholly on or behind the plane of a polygon end: the segments
+    /// that carry light leave that polygon from its front (lifted by the ray offset) toward
+    /// points in front of it, so they stay in front of its plane (a shaft test after Haines &
+    /// Wallace 1994, with the ends' planes and box as the shaft's faces). This clears the
+    /// links between pieces of a room whose only neighbours in the capsule are the coplanar
+    /// or adjoining surfaces.
     fn clear(&self, p: u32, q: u32) -> bool {
         let (np, nq) = (&self.tree.nodes[p as usize], &self.tree.nodes[q as usize]);
         let inside = |range: (u32, u32), pos: u32| pos >= range.0 && pos < range.1;
-        !self
-            .visibility
-            .maybe_blocked(np.centre, nq.centre, np.radius.max(nq.radius), &|polygon| {
+        let offset = self.visibility.offset();
+        // Tolerances well inside the ray offset, well above f32 rounding of the vertices.
+        let (slack, on_plane) = (2.0 * offset, 0.25 * offset);
+        let lo = (np.bounds[0].min(nq.bounds[0]) - DVec3::splat(slack)).as_vec3();
+        let hi = (np.bounds[1].max(nq.bounds[1]) + DVec3::splat(slack)).as_vec3();
+        let plane = |n: &tree::Node, node: u32| {
+            n.is_polygon()
+                .then(|| (self.tree.polygon(node)[0].as_vec3(), n.axis.as_vec3()))
+        };
+        let planes = [plane(np, p), plane(nq, q)];
+        !self.visibility.maybe_blocked(
+            np.centre,
+            nq.centre,
+            np.radius.max(nq.radius),
+            &|polygon, tri| {
                 let pos = self.tree.leaf_position[polygon];
-                inside(np.leaves, pos) || inside(nq.leaves, pos)
-            })
+                if inside(np.leaves, pos) || inside(nq.leaves, pos) {
+                    return true;
+                }
+                let (tmin, tmax) = (
+                    tri[0].min(tri[1]).min(tri[2]),
+                    tri[0].max(tri[1]).max(tri[2]),
+                );
+                if tmin.cmpgt(hi).any() || tmax.cmplt(lo).any() {
+                    return true;
+                }
+                planes.iter().flatten().any(|&(origin, normal)| {
+                    tri.iter()
+                        .all(|v| f64::from((*v - origin).dot(normal)) <= on_plane)
+                })
+            },
+        )
     }
 
     /// Oriented cluster ← polygon: the Lambert vector Γ(x → q) at the cluster's sample
@@ -1919,6 +1954,70 @@ mod tests {
         }
         assert!(checked > 1000, "only {checked} pairs");
         assert!(tightest > 0.5, "the bound is never approached: {tightest}");
+    }
+
+    /// The shaft test ([`Hierarchical::clear`]) is sound: in a furnished room, for pairs of
+    /// polygons all over it that it calls clear, no ray between sample points of the two
+    /// (each in front of the other, where light passes) is blocked. It is not vacuous: many
+    /// of those pairs have other surfaces in their capsule, which alone called them blocked
+    /// (walls beside the floor, the floor under a box's sides). Measured: 1,846 pairs, all
+    /// with others in their capsule, 136,977 rays.
+    #[test]
+    fn pairs_the_shaft_test_calls_clear_are_unblocked() {
+        let scene = crate::generate::furnished_room(12, 7);
+        let mut h = Hierarchical::new(
+            &scene,
+            crate::formfactor::FormFactorMethod::Raycast.kernel(),
+            HierarchicalOptions::default(),
+        )
+        .unwrap();
+        // Refined a little, so that pieces of polygons are paired too.
+        let ones = vec![[1.0; 3]; h.mesh().elements.len()];
+        h.set_solution(&ones, &ones);
+        h.refine(0.5);
+        let tree = h.tree();
+        let polygons: Vec<u32> = (0..tree.nodes.len() as u32)
+            .filter(|&n| tree.nodes[n as usize].is_polygon())
+            .collect();
+        let inside = |range: (u32, u32), pos: u32| pos >= range.0 && pos < range.1;
+        let (mut clear, mut only_by_shaft, mut rays) = (0, 0, 0);
+        for &p in polygons.iter().step_by(5) {
+            for &q in polygons.iter().step_by(3) {
+                if p == q || h.behind(p, q) || h.behind(q, p) || !h.clear(p, q) {
+                    continue;
+                }
+                clear += 1;
+                let (np, nq) = (&tree.nodes[p as usize], &tree.nodes[q as usize]);
+                let capsule_blocked = h.visibility.maybe_blocked(
+                    np.centre,
+                    nq.centre,
+                    np.radius.max(nq.radius),
+                    &|polygon, _| {
+                        let pos = tree.leaf_position[polygon];
+                        inside(np.leaves, pos) || inside(nq.leaves, pos)
+                    },
+                );
+                if capsule_blocked {
+                    only_by_shaft += 1;
+                }
+                for (x, nx) in tree.sample_points(p, 9) {
+                    for (y, ny) in tree.sample_points(q, 9) {
+                        if nx.dot(y - x) <= 0.0 || ny.dot(x - y) <= 0.0 {
+                            continue;
+                        }
+                        rays += 1;
+                        assert!(
+                            h.visibility.visible(x, nx, y, ny),
+                            "{p} ← {q} called clear, but {x} does not see {y}"
+                        );
+                    }
+                }
+            }
+        }
+        assert!(
+            only_by_shaft > 1000,
+            "{only_by_shaft} of {clear} clear pairs ({rays} rays)"
+        );
     }
 
     /// A glowing 1 m square just above a floor that reaches 100 m behind its plane and 1 m in
