@@ -528,26 +528,12 @@ fn in_plane_inverse(node: &super::tree::Node, t: DVec3) -> DVec3 {
 mod tests {
     use super::*;
     use crate::coupling::Coupling;
-    use crate::formfactor::FormFactorMethod;
+
+    use super::super::tests::refined;
 
     /// The furnace cube's hierarchy, refined to `epsilon` for unit radiosity everywhere.
     fn refined_furnace(epsilon: f64) -> Hierarchical {
         refined(&super::super::tests::furnace(), epsilon)
-    }
-
-    /// The hierarchy of `scene`, refined to `epsilon` for unit radiosity everywhere.
-    fn refined(scene: &crate::scene::Scene, epsilon: f64) -> Hierarchical {
-        let mut h = Hierarchical::new(
-            scene,
-            FormFactorMethod::Raycast.kernel(),
-            super::super::HierarchicalOptions::default(),
-        )
-        .unwrap();
-        let ones = vec![[1.0; 3]; h.mesh().elements.len()];
-        h.set_solution(&ones, &ones);
-        h.refine(epsilon);
-        h.remesh(scene);
-        h
     }
 
     /// The power Σ_p A_p H_p (first channel) the leaves gather from radiosities `b`.

@@ -1869,6 +1869,21 @@ mod tests {
     use super::*;
     use crate::scene::{Material, MaterialId, Origin, Surface};
 
+    /// The hierarchy of `scene`, refined to `epsilon` for unit radiosity everywhere.
+    pub(super) fn refined(scene: &Scene, epsilon: f64) -> Hierarchical {
+        let mut h = Hierarchical::new(
+            scene,
+            crate::formfactor::FormFactorMethod::Raycast.kernel(),
+            HierarchicalOptions::default(),
+        )
+        .unwrap();
+        let ones = vec![[1.0; 3]; h.mesh().elements.len()];
+        h.set_solution(&ones, &ones);
+        h.refine(epsilon);
+        h.remesh(scene);
+        h
+    }
+
     /// The unit cube with inward-facing faces, every face emitting E = 1 W·m⁻² and ρ = 0.5.
     pub(super) fn furnace() -> Scene {
         let faces: [[[f64; 3]; 4]; 6] = [
@@ -1964,17 +1979,8 @@ mod tests {
     /// with others in their capsule, 136,977 rays.
     #[test]
     fn pairs_the_shaft_test_calls_clear_are_unblocked() {
-        let scene = crate::generate::furnished_room(12, 7);
-        let mut h = Hierarchical::new(
-            &scene,
-            crate::formfactor::FormFactorMethod::Raycast.kernel(),
-            HierarchicalOptions::default(),
-        )
-        .unwrap();
         // Refined a little, so that pieces of polygons are paired too.
-        let ones = vec![[1.0; 3]; h.mesh().elements.len()];
-        h.set_solution(&ones, &ones);
-        h.refine(0.5);
+        let h = refined(&crate::generate::furnished_room(12, 7), 0.5);
         let tree = h.tree();
         let polygons: Vec<u32> = (0..tree.nodes.len() as u32)
             .filter(|&n| tree.nodes[n as usize].is_polygon())
@@ -2105,17 +2111,7 @@ mod tests {
 
     #[test]
     fn links_of_a_closed_box_close() {
-        let scene = furnace();
-        let mut h = Hierarchical::new(
-            &scene,
-            crate::formfactor::FormFactorMethod::Raycast.kernel(),
-            HierarchicalOptions::default(),
-        )
-        .unwrap();
-        let ones = vec![[1.0; 3]; h.mesh().elements.len()];
-        h.set_solution(&ones, &ones);
-        h.refine(4e-3);
-        h.remesh(&scene);
+        let h = refined(&furnace(), 4e-3);
         let ones = vec![[1.0; 3]; h.mesh().elements.len()];
         let got = h.gather(&ones);
         let (mut mean, mut area) = (0.0, 0.0);
