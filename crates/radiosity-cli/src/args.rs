@@ -56,19 +56,23 @@ pub enum Command {
 #[derive(Debug, Clone, Args)]
 pub struct SolveArgs {
     /// Maximum element edge length in metres (overrides --elements; the classic solvers'
-    /// mesh only: refused with --solver hierarchical).
+    /// mesh only: selects progressive refinement when no solver is named, refused with
+    /// --solver hierarchical).
     #[arg(long, value_name = "METRES", allow_hyphen_values = true)]
     pub max_element_size: Option<f64>,
-    /// Approximate total number of elements [default: 4000]. With --solver hierarchical: no
-    /// element is subdivided below 1/N of the total surface area, so subdivision makes at
-    /// most N leaves (input polygons smaller than that stay whole) [default there: 33333].
+    /// Approximate total number of elements of the classic mesh [default: 4000]. With the
+    /// hierarchical solver (the default): no element is subdivided below 1/N of the total
+    /// surface area, so subdivision makes at most N leaves (input polygons smaller than that
+    /// stay whole) [default there: 33333].
     #[arg(long, value_name = "N", allow_hyphen_values = true)]
     pub elements: Option<i64>,
     /// Elements per patch edge: patches shoot, elements receive (1 = every element shoots)
-    /// [default: 3].
+    /// [default: 3]. Classic mesh only, as --max-element-size.
     #[arg(long, value_name = "K", allow_hyphen_values = true)]
     pub patch_subdivision: Option<i64>,
-    /// Solver [default: progressive].
+    /// Solver [default: hierarchical; progressive when a classic-only option is given:
+    /// --max-element-size, --patch-subdivision, --adaptive, --max-shots, --overshoot,
+    /// --ambient].
     #[arg(long, value_enum)]
     pub solver: Option<SolverKind>,
     /// Form-factor method [default: raycast].
@@ -86,7 +90,7 @@ pub struct SolveArgs {
     #[arg(long, value_name = "W", allow_hyphen_values = true)]
     pub overshoot: Option<f64>,
     /// Hierarchical solver: the largest irradiance error one link may carry, as a fraction of
-    /// its receiver's irradiance (smaller: more links, more accurate) [default: 0.02].
+    /// its receiver's irradiance (smaller: more links, more accurate) [default: 0.01].
     #[arg(long, value_name = "X", allow_hyphen_values = true)]
     pub epsilon: Option<f64>,
     /// Adaptive meshing: start from half of --elements (edges √2 longer) and split elements

@@ -42,6 +42,8 @@ pub fn run(args: ProgressiveArgs) -> Result<()> {
     }
     let loaded = load_scene(args.scene.as_deref(), &args.solve)?;
     let mut flags = args.solve.overrides();
+    // Shooting is what this command shows, whatever the default solver.
+    flags.solver = Some(SolverKind::Progressive);
     args.view.add_to(&mut flags);
     let settings = loaded.settings(&flags)?;
     let scene = &loaded.scene;

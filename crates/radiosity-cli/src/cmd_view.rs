@@ -622,6 +622,7 @@ mod tests {
         let settings = loaded
             .settings(&radiosity::settings::Overrides {
                 elements: Some(300),
+                solver: Some(radiosity::solve::SolverKind::Progressive),
                 ..Default::default()
             })
             .unwrap();

@@ -311,8 +311,12 @@ fn bad_input_fails_before_anything_is_served() {
 
 #[test]
 fn waits_for_a_page_then_solves_and_ctrl_c_stops_a_running_solve() {
-    // --wait: nothing is solved until a page opens the event stream.
-    let v = viewer::start(&["--wait", "--elements", "200"], Duration::from_secs(30));
+    // --wait: nothing is solved until a page opens the event stream. (Progressive
+    // refinement: its mesh is shown before the form factors.)
+    let v = viewer::start(
+        &["--wait", "--solver", "progressive", "--elements", "200"],
+        Duration::from_secs(30),
+    );
     std::thread::sleep(Duration::from_millis(500));
     let notice = body_json(&get(v.port, "GET", "/api/progress").1);
     assert_eq!(

@@ -14,7 +14,7 @@ use radiosity::mesh::{Mesh, MeshOptions, RefineOptions};
 use radiosity::pipeline::{render_elements, solve_mesh, solve_scene, Shaded, SolveSettings};
 use radiosity::progress::NoProgress;
 use radiosity::render::{srgb_byte, Image, RenderOptions};
-use radiosity::solve::{progressive, NoObserver, SolveOptions};
+use radiosity::solve::{progressive, NoObserver, SolveOptions, SolverKind};
 use radiosity_studies::sequence::{
     contact_sheet, run, Sequence, SequenceError, SequenceOptions, View,
 };
@@ -26,6 +26,7 @@ fn settings(elements: usize, tolerance: f64) -> SolveSettings {
             ..Default::default()
         },
         solve: SolveOptions {
+            solver: SolverKind::Progressive,
             tolerance,
             ..Default::default()
         },
@@ -80,7 +81,7 @@ fn frame_n_shows_exactly_n_shots_at_the_requested_size() {
             solve: SolveOptions {
                 max_shots: Some(n),
                 tolerance: 1e-12,
-                ..Default::default()
+                ..settings.solve
             },
             ..settings
         };

@@ -306,8 +306,27 @@ pub fn resolve(
         flags.form_factor,
         fs.form_factor.as_deref(),
     )?;
+    // The default solver is hierarchical. A flag that only the classic mesh or progressive
+    // refinement uses asks for them: with no solver named (flag or scene file) it selects
+    // progressive refinement; with the hierarchical solver named it is an error naming the
+    // flag, rather than silently ignored.
+    let classic = classic_only(flags, fs, name);
+    let solver = match (solver, classic) {
+        (None, Some(_)) => SolverKind::Progressive,
+        (Some(SolverKind::Hierarchical), Some((origin, flag))) => {
+            return Err(bad(
+                origin,
+                format!(
+                    "{} and does not apply to the hierarchical solver, which refines where \
+                     its links ask (--epsilon) down to 1/N of the total area (--elements N)",
+                    classic_use(flag)
+                ),
+            ));
+        }
+        (solver, _) => solver.unwrap_or_default(),
+    };
     let mut solve = SolveOptions {
-        solver: solver.unwrap_or_default(),
+        solver,
         ..SolveOptions::default()
     };
     if let Some(t) = number(
@@ -346,16 +365,6 @@ pub fn resolve(
         solve.overshoot = w;
     }
     settings.solve.solve = solve;
-    // The hierarchical solver has no classic mesh to size: say so rather than ignore it.
-    if settings.solve.solve.solver == SolverKind::Hierarchical && flags.max_element_size.is_some() {
-        return Err(bad(
-            Origin::Flag("--max-element-size"),
-            "sizes the classic mesh and does not apply to the hierarchical solver, which \
-             refines where its links ask (--epsilon) down to 1/N of the total area \
-             (--elements N)"
-                .to_owned(),
-        ));
-    }
     if let Some(e) = number(
         Pick::new(name, "--epsilon", "epsilon", flags.epsilon, fs.epsilon),
         0.0,
@@ -521,6 +530,65 @@ pub fn camera(
     Ok(camera)
 }
 
+/// The first setting given that only the classic mesh or progressive refinement uses, if
+/// any: where it came from (a flag, else a key of the scene file `name`) and its flag.
+fn classic_only(
+    flags: &Overrides,
+    fs: &SceneSettings,
+    name: Option<&str>,
+) -> Option<(Origin, &'static str)> {
+    let flag = [
+        ("--max-element-size", flags.max_element_size.is_some()),
+        ("--patch-subdivision", flags.patch_subdivision.is_some()),
+        ("--adaptive", flags.adaptive),
+        ("--max-shots", flags.max_shots.is_some()),
+        ("--overshoot", flags.overshoot.is_some()),
+        ("--ambient", flags.ambient),
+    ]
+    .into_iter()
+    .find_map(|(flag, given)| given.then_some((Origin::Flag(flag), flag)));
+    let file = name.and_then(|file| {
+        [
+            (
+                "max_element_size",
+                "--max-element-size",
+                // A count on the command line overrides a size from the file.
+                fs.max_element_size.is_some() && flags.elements.is_none(),
+            ),
+            (
+                "patch_subdivision",
+                "--patch-subdivision",
+                fs.patch_subdivision.is_some(),
+            ),
+            ("max_shots", "--max-shots", fs.max_shots.is_some()),
+            ("ambient", "--ambient", fs.ambient == Some(true)),
+        ]
+        .into_iter()
+        .find_map(|(key, flag, given)| {
+            given.then(|| {
+                (
+                    Origin::SceneFile {
+                        file: file.to_owned(),
+                        key,
+                    },
+                    flag,
+                )
+            })
+        })
+    });
+    flag.or(file)
+}
+
+/// What a classic-only flag does, for the error that refuses it with the hierarchical solver.
+fn classic_use(flag: &str) -> &'static str {
+    match flag {
+        "--max-element-size" | "--patch-subdivision" => "sizes the classic mesh",
+        "--adaptive" => "refines the classic mesh",
+        "--max-shots" | "--overshoot" => "steers progressive refinement",
+        _ => "shows progressive refinement's ambient term",
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -606,11 +674,165 @@ mod tests {
         // Other solvers keep the default too (their meshes use the count).
         let flags = Overrides {
             elements: Some(2000),
+            solver: Some(SolverKind::Progressive),
             ..Default::default()
         };
         let s = resolve(None, &flags).unwrap();
         assert_eq!(s.solve.hierarchical.min_area_fraction, default_fraction);
         assert_eq!(s.solve.mesh.elements, 2000);
+    }
+
+    #[test]
+    fn classic_only_flags_select_progressive_refinement_or_are_refused_for_hierarchical() {
+        let cases: [(&str, Overrides); 6] = [
+            (
+                "--max-element-size",
+                Overrides {
+                    max_element_size: Some(0.1),
+                    ..Default::default()
+                },
+            ),
+            (
+                "--patch-subdivision",
+                Overrides {
+                    patch_subdivision: Some(2),
+                    ..Default::default()
+                },
+            ),
+            (
+                "--adaptive",
+                Overrides {
+                    adaptive: true,
+                    ..Default::default()
+                },
+            ),
+            (
+                "--max-shots",
+                Overrides {
+                    max_shots: Some(50),
+                    ..Default::default()
+                },
+            ),
+            (
+                "--overshoot",
+                Overrides {
+                    overshoot: Some(1.1),
+                    ..Default::default()
+                },
+            ),
+            (
+                "--ambient",
+                Overrides {
+                    ambient: true,
+                    ..Default::default()
+                },
+            ),
+        ];
+        // Nothing asked: the hierarchical solver.
+        let plain = resolve(None, &Overrides::default()).unwrap();
+        assert_eq!(plain.solve.solve.solver, SolverKind::Hierarchical);
+        for (flag, flags) in cases {
+            // No solver named: progressive refinement, which uses the flag.
+            let s = resolve(None, &flags).unwrap();
+            assert_eq!(s.solve.solve.solver, SolverKind::Progressive, "{flag}");
+            // A scene file's solver counts as named.
+            let file = SceneSettings {
+                solver: Some("jacobi".into()),
+                ..Default::default()
+            };
+            let s = resolve(Some((&file, "a.json")), &flags).unwrap();
+            assert_eq!(s.solve.solve.solver, SolverKind::Jacobi, "{flag}");
+            // The hierarchical solver named: an error naming the flag.
+            let e = resolve(
+                None,
+                &Overrides {
+                    solver: Some(SolverKind::Hierarchical),
+                    ..flags
+                },
+            )
+            .unwrap_err();
+            assert_eq!(e.origin, Origin::Flag(flag));
+            assert!(e.to_string().contains("hierarchical"), "{e}");
+        }
+    }
+
+    #[test]
+    fn classic_only_scene_file_keys_select_progressive_refinement_or_are_refused() {
+        let files = [
+            (
+                "max_element_size",
+                SceneSettings {
+                    max_element_size: Some(0.1),
+                    ..Default::default()
+                },
+            ),
+            (
+                "patch_subdivision",
+                SceneSettings {
+                    patch_subdivision: Some(2),
+                    ..Default::default()
+                },
+            ),
+            (
+                "max_shots",
+                SceneSettings {
+                    max_shots: Some(50),
+                    ..Default::default()
+                },
+            ),
+            (
+                "ambient",
+                SceneSettings {
+                    ambient: Some(true),
+                    ..Default::default()
+                },
+            ),
+        ];
+        for (key, file) in files {
+            let s = resolve(Some((&file, "a.json")), &Overrides::default()).unwrap();
+            assert_eq!(s.solve.solve.solver, SolverKind::Progressive, "{key}");
+            // The hierarchical solver named, on the command line or in the file: an error
+            // naming the file's key.
+            let flagged = Overrides {
+                solver: Some(SolverKind::Hierarchical),
+                ..Default::default()
+            };
+            let in_file = SceneSettings {
+                solver: Some("hierarchical".into()),
+                ..file.clone()
+            };
+            for e in [
+                resolve(Some((&file, "a.json")), &flagged).unwrap_err(),
+                resolve(Some((&in_file, "a.json")), &Overrides::default()).unwrap_err(),
+            ] {
+                assert_eq!(
+                    e.origin,
+                    Origin::SceneFile {
+                        file: "a.json".into(),
+                        key
+                    },
+                    "{e}"
+                );
+            }
+        }
+        // `ambient: false` asks for nothing, and a count on the command line overrides the
+        // file's element size: both stay hierarchical.
+        let off = SceneSettings {
+            ambient: Some(false),
+            ..Default::default()
+        };
+        let s = resolve(Some((&off, "a.json")), &Overrides::default()).unwrap();
+        assert_eq!(s.solve.solve.solver, SolverKind::Hierarchical);
+        let sized = SceneSettings {
+            max_element_size: Some(0.1),
+            ..Default::default()
+        };
+        let count = Overrides {
+            elements: Some(500),
+            ..Default::default()
+        };
+        let s = resolve(Some((&sized, "a.json")), &count).unwrap();
+        assert_eq!(s.solve.solve.solver, SolverKind::Hierarchical);
     }
 
     #[test]

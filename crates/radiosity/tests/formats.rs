@@ -169,6 +169,7 @@ fn mgf_room_balances_its_lamps_power() {
     // Progressive refinement with the exact polygon-to-polygon factors: the room has ~1700
     // meshed surfaces (the two-sided shade counts twice), too many for a quick direct solve.
     let mut settings = SolveSettings::default();
+    settings.solve.solver = SolverKind::Progressive;
     settings.mesh.elements = 1200;
     settings.form_factor = radiosity::FormFactorMethod::AnalyticPolygon;
     let solved = solve_scene(scene, &settings, &NoProgress).expect("solves");

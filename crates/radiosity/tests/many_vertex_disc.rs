@@ -82,7 +82,9 @@ fn is_disc(mesh: &Mesh, e: &radiosity::mesh::Element) -> bool {
 fn a_disc_of_two_hundred_thousand_vertices_solves_by_the_element_budget() {
     let scene = scene();
     assert_eq!(scene.surfaces.len(), 2);
-    let settings = SolveSettings::default();
+    // The classic mesh, whose element budget is under test.
+    let mut settings = SolveSettings::default();
+    settings.solve.solver = radiosity::solve::SolverKind::Progressive;
     let budget = settings.mesh.elements;
     let solved = solve_scene(&scene, &settings, &NoProgress).expect("the scene solves");
     let (mesh, solution) = (&solved.mesh, &solved.solution);

@@ -14,6 +14,7 @@ use radiosity::pipeline::{solve_scene, SolveSettings, Solved};
 use radiosity::progress::NoProgress;
 use radiosity::report::Report;
 use radiosity::scene::Scene;
+use radiosity::solve::SolverKind;
 use std::f64::consts::PI;
 use std::path::{Path, PathBuf};
 
@@ -22,9 +23,10 @@ fn load(path: &str) -> LoadedScene {
         .unwrap_or_else(|e| panic!("{path}: {e}"))
 }
 
-/// Progressive refinement (the default solver) on a coarse mesh.
+/// Progressive refinement on a coarse mesh.
 fn solve(scene: &Scene, elements: usize) -> Solved {
     let mut settings = SolveSettings::default();
+    settings.solve.solver = SolverKind::Progressive;
     settings.mesh.elements = elements;
     solve_scene(scene, &settings, &NoProgress).unwrap_or_else(|e| panic!("{}: {e}", scene.name))
 }
@@ -53,8 +55,10 @@ fn scene_files(dir: &Path, out: &mut Vec<PathBuf>) {
 }
 
 /// Finite, non-negative B and H everywhere, and the energy balance
-/// emitted = absorbed + escaped + unshot (progressive refinement keeps the books exactly, so
-/// only rounding separates the two sides); returns the report.
+/// emitted = absorbed + escaped + unshot: progressive refinement keeps the books exactly, so
+/// only rounding (1e-9) separates the two sides; the hierarchical solver's Jacobi sweeps
+/// balance them to its stopping rule (1e-4, as on the Cornell box in tests/hierarchical.rs;
+/// measured up to 4.5e-5 here, on `trimesh_room.glb`). Returns the report.
 fn check_solution(scene: &Scene, solved: &Solved, what: &str) -> Report {
     let solution = &solved.solution;
     for (b, h) in solution.radiosity.iter().zip(&solution.irradiance) {
@@ -64,8 +68,12 @@ fn check_solution(scene: &Scene, solved: &Solved, what: &str) -> Report {
         );
     }
     let report = report(scene, solved);
+    let bound = match solved.solution.stats.solver {
+        SolverKind::Progressive => 1e-9,
+        _ => 1e-4,
+    };
     assert!(
-        report.balance_error() < 1e-9,
+        report.balance_error() < bound,
         "{what}: balance error {}",
         report.balance_error()
     );
@@ -94,18 +102,23 @@ fn every_scene_in_the_folder_loads_and_solves_without_nan() {
         // mgf_room.mgf) and at most 100 shots, to keep the test quick; the books balance at
         // every shot, the power not yet shot counting as unshot.
         let mut settings = SolveSettings::default();
+        settings.solve.solver = SolverKind::Progressive;
         settings.mesh.elements = 300;
         settings.solve.max_shots = Some(100);
-        let solved =
-            solve_scene(scene, &settings, &NoProgress).unwrap_or_else(|e| panic!("{what}: {e}"));
-        let report = check_solution(scene, &solved, &what);
-        // Every scene is lit (no silent black): some power is emitted and some absorbed.
-        for c in 0..3 {
-            assert!(
-                report.totals.emitted_power[c] > 0.0 && report.totals.absorbed_power[c] > 0.0,
-                "{what}: channel {c}: {:?}",
-                report.totals
-            );
+        // And the default solver (hierarchical) at its default ε.
+        for settings in [settings, SolveSettings::default()] {
+            let what = format!("{what} ({})", settings.solve.solver);
+            let solved = solve_scene(scene, &settings, &NoProgress)
+                .unwrap_or_else(|e| panic!("{what}: {e}"));
+            let report = check_solution(scene, &solved, &what);
+            // Every scene is lit (no silent black): some power is emitted and some absorbed.
+            for c in 0..3 {
+                assert!(
+                    report.totals.emitted_power[c] > 0.0 && report.totals.absorbed_power[c] > 0.0,
+                    "{what}: channel {c}: {:?}",
+                    report.totals
+                );
+            }
         }
     }
 }

@@ -9,8 +9,8 @@
 //! iterates to the solver tolerance.
 
 use super::{
-    exitance, iterate_from, reflect, Flow, Observer, Solution, SolveOptions, SolverKind, Step,
-    StepKind,
+    exitance, iterate_from, non_negative, reflect, Flow, Observer, Solution, SolveOptions,
+    SolverKind, Step, StepKind,
 };
 use crate::coupling::hierarchical::{Hierarchical, HierarchicalError, HierarchicalOptions};
 use crate::coupling::Coupling;
@@ -97,7 +97,7 @@ pub fn solve(
             SolverKind::Hierarchical,
             &stage_options,
             &mut carried,
-            &mut |x| *x = reflect(mesh, &coupling.gather(x)),
+            &mut |x| *x = reflect(mesh, &non_negative(coupling.gather(x))),
         );
         carried.offset += s.stats.seconds;
         carried.iterations += s.stats.iterations;
