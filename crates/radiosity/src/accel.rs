@@ -358,6 +358,19 @@ impl Bvh {
         self.occluded(a, b - a, eps, 1.0 - eps)
     }
 
+    /// [`Bvh::segment_occluded`] against the triangles of `packets` alone (indices from
+    /// [`Bvh::capsule_visit`]): the same ray–triangle test, without the traversal. When every
+    /// triangle that could cross the segment is in `packets`, the answer is the same.
+    pub fn segment_occluded_among(&self, packets: &[u32], a: Vec3, b: Vec3, eps: f32) -> bool {
+        let Some(ray) = Ray::new(a, b - a) else {
+            return false;
+        };
+        let range = (Vec4::splat(eps), Vec4::splat(1.0 - eps));
+        packets
+            .iter()
+            .any(|&k| ray.hit(&self.packets[k as usize], range).0 != 0)
+    }
+
     /// Whether some triangle for which `counts(triangle, vertices)` holds may lie within
     /// distance `radius` of the segment `a`–`b` (a capsule holding the convex hull of two
     /// spheres of at most that radius about the ends: a conservative shaft). Boxes and
@@ -369,6 +382,21 @@ impl Bvh {
         b: Vec3,
         radius: f32,
         counts: &dyn Fn(u32, &[Vec3; 3]) -> bool,
+    ) -> bool {
+        self.capsule_visit(a, b, radius, &mut |_, t, tri| counts(t, tri))
+    }
+
+    /// Calls `visit(packet, triangle, vertices)` for every triangle that may lie within
+    /// distance `radius` of the segment `a`–`b` (tested as in [`Bvh::capsule_hits`]), `packet`
+    /// the index of the group of triangles it is stored in (for
+    /// [`Bvh::segment_occluded_among`]), until `visit` returns true; returns whether it did.
+    /// The triangles of one packet are visited one after another.
+    pub fn capsule_visit(
+        &self,
+        a: Vec3,
+        b: Vec3,
+        radius: f32,
+        visit: &mut dyn FnMut(u32, u32, &[Vec3; 3]) -> bool,
     ) -> bool {
         let seg = b - a;
         let len2 = seg.length_squared();
@@ -407,7 +435,7 @@ impl Bvh {
                             tri[0].min(tri[1]).min(tri[2]),
                             tri[0].max(tri[1]).max(tri[2]),
                         );
-                        if near(tmin, tmax) && counts(ids[lane], &tri) {
+                        if near(tmin, tmax) && visit(k as u32, ids[lane], &tri) {
                             return true;
                         }
                     }
@@ -1012,6 +1040,34 @@ impl Visibility {
             (radius * (1.0 + 1e-6) + self.offset) as f32,
             &|t, tri| !exclude(self.triangle_polygon[t as usize] as usize, tri),
         )
+    }
+
+    /// Calls `visit(packet, polygon, vertices)` for every surface triangle that may lie in
+    /// the capsule of `radius` (m) about the segment `a`–`b` (as [`Visibility::maybe_blocked`]),
+    /// until it returns true; returns whether it did. `packet` is for
+    /// [`Visibility::visible_among`].
+    pub fn shaft_visit(
+        &self,
+        a: DVec3,
+        b: DVec3,
+        radius: f64,
+        visit: &mut dyn FnMut(u32, usize, &[Vec3; 3]) -> bool,
+    ) -> bool {
+        self.bvh.capsule_visit(
+            a.as_vec3(),
+            b.as_vec3(),
+            (radius * (1.0 + 1e-6) + self.offset) as f32,
+            &mut |k, t, tri| visit(k, self.triangle_polygon[t as usize] as usize, tri),
+        )
+    }
+
+    /// [`Visibility::visible`] with only the triangles of `packets` as possible blockers
+    /// (from [`Visibility::shaft_visit`]): the same answer when they hold every triangle that
+    /// could cross the segment, without traversing the BVH.
+    pub fn visible_among(&self, packets: &[u32], x: DVec3, nx: DVec3, y: DVec3, ny: DVec3) -> bool {
+        let a = (x + nx * self.offset).as_vec3();
+        let b = (y + ny * self.offset).as_vec3();
+        !self.bvh.segment_occluded_among(packets, a, b, 1e-5)
     }
 
     /// How far ray ends are lifted off their surfaces, m.
