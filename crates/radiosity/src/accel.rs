@@ -383,19 +383,22 @@ impl Bvh {
         radius: f32,
         counts: &dyn Fn(u32, &[Vec3; 3]) -> bool,
     ) -> bool {
-        self.capsule_visit(a, b, radius, &mut |_, t, tri| counts(t, tri))
+        self.capsule_visit(a, b, radius, None, &mut |_, t, tri| counts(t, tri))
     }
 
     /// Calls `visit(packet, triangle, vertices)` for every triangle that may lie within
     /// distance `radius` of the segment `a`–`b` (tested as in [`Bvh::capsule_hits`]), `packet`
     /// the index of the group of triangles it is stored in (for
     /// [`Bvh::segment_occluded_among`]), until `visit` returns true; returns whether it did.
-    /// The triangles of one packet are visited one after another.
+    /// The triangles of one packet are visited one after another. With `clip` = [lo, hi],
+    /// only triangles whose bounding box overlaps that box are visited, and subtrees
+    /// outside it are not walked.
     pub fn capsule_visit(
         &self,
         a: Vec3,
         b: Vec3,
         radius: f32,
+        clip: Option<[Vec3; 2]>,
         visit: &mut dyn FnMut(u32, u32, &[Vec3; 3]) -> bool,
     ) -> bool {
         let seg = b - a;
@@ -409,6 +412,11 @@ impl Bvh {
             (a + seg * t).distance(p)
         };
         let near = |min: Vec3, max: Vec3| {
+            if let Some([lo, hi]) = clip {
+                if min.cmpgt(hi).any() || max.cmplt(lo).any() {
+                    return false;
+                }
+            }
             let centre = (min + max) * 0.5;
             distance(centre) <= radius + (max - min).length() * 0.5
         };
@@ -1045,18 +1053,20 @@ impl Visibility {
     /// Calls `visit(packet, polygon, vertices)` for every surface triangle that may lie in
     /// the capsule of `radius` (m) about the segment `a`–`b` (as [`Visibility::maybe_blocked`]),
     /// until it returns true; returns whether it did. `packet` is for
-    /// [`Visibility::visible_among`].
+    /// [`Visibility::visible_among`]; `clip` as for [`Bvh::capsule_visit`].
     pub fn shaft_visit(
         &self,
         a: DVec3,
         b: DVec3,
         radius: f64,
+        clip: Option<[Vec3; 2]>,
         visit: &mut dyn FnMut(u32, usize, &[Vec3; 3]) -> bool,
     ) -> bool {
         self.bvh.capsule_visit(
             a.as_vec3(),
             b.as_vec3(),
             (radius * (1.0 + 1e-6) + self.offset) as f32,
+            clip,
             &mut |k, t, tri| visit(k, self.triangle_polygon[t as usize] as usize, tri),
         )
     }

@@ -1019,18 +1019,16 @@ impl Hierarchical {
         let planes = [plane(np, p), plane(nq, q)];
         let mut packets: Vec<u32> = Vec::new();
         let (mut others, mut overflowed) = (false, false);
+        // Triangles outside the pair's box are not visited, and subtrees outside it are not
+        // walked: measured 15 % less CPU in the furnished rooms (100, 300 and 1000 objects:
+        // 15.0 against 17.1–18.1 s, 39.3–41.4 against 46.6–49.6 s, 115 against 136 s user,
+        // alternated), where the capsules of long links hold thousands of triangles.
         self.visibility.shaft_visit(
             np.centre,
             nq.centre,
             np.radius.max(nq.radius),
+            Some([lo, hi]),
             &mut |packet, polygon, tri| {
-                let (tmin, tmax) = (
-                    tri[0].min(tri[1]).min(tri[2]),
-                    tri[0].max(tri[1]).max(tri[2]),
-                );
-                if tmin.cmpgt(hi).any() || tmax.cmplt(lo).any() {
-                    return false;
-                }
                 let behind = planes.iter().flatten().any(|&(origin, normal)| {
                     tri.iter()
                         .all(|v| f64::from((*v - origin).dot(normal)) <= on_plane)
