@@ -371,24 +371,12 @@ impl Bvh {
             .any(|&k| ray.hit(&self.packets[k as usize], range).0 != 0)
     }
 
-    /// Whether some triangle for which `counts(triangle, vertices)` holds may lie within
-    /// distance `radius` of the segment `a`–`b` (a capsule holding the convex hull of two
-    /// spheres of at most that radius about the ends: a conservative shaft). Boxes and
-    /// triangles are tested by their bounding spheres, so a `false` is certain and a `true`
-    /// only possible.
-    pub fn capsule_hits(
-        &self,
-        a: Vec3,
-        b: Vec3,
-        radius: f32,
-        counts: &dyn Fn(u32, &[Vec3; 3]) -> bool,
-    ) -> bool {
-        self.capsule_visit(a, b, radius, None, &mut |_, t, tri| counts(t, tri))
-    }
-
     /// Calls `visit(packet, triangle, vertices)` for every triangle that may lie within
-    /// distance `radius` of the segment `a`–`b` (tested as in [`Bvh::capsule_hits`]), `packet`
-    /// the index of the group of triangles it is stored in (for
+    /// distance `radius` of the segment `a`–`b` (a capsule holding the convex hull of two
+    /// spheres of at most that radius about the ends: a conservative shaft; boxes and
+    /// triangles are tested by their bounding spheres, so a triangle not visited certainly
+    /// lies outside, a visited one only possibly inside), `packet` the index of the group of
+    /// triangles it is stored in (for
     /// [`Bvh::segment_occluded_among`]), until `visit` returns true; returns whether it did.
     /// The triangles of one packet are visited one after another. With `clip` = [lo, hi],
     /// only triangles whose bounding box overlaps that box are visited, and subtrees
@@ -1034,7 +1022,7 @@ impl Visibility {
     /// Whether some surface triangle other than those `exclude` accepts (by polygon index and
     /// vertices) may lie in the capsule of `radius` (m) about the segment `a`–`b`: a
     /// conservative test that nothing can block light between two spheres (see
-    /// [`Bvh::capsule_hits`]).
+    /// [`Bvh::capsule_visit`]).
     pub fn maybe_blocked(
         &self,
         a: DVec3,
@@ -1042,12 +1030,9 @@ impl Visibility {
         radius: f64,
         exclude: &dyn Fn(usize, &[Vec3; 3]) -> bool,
     ) -> bool {
-        self.bvh.capsule_hits(
-            a.as_vec3(),
-            b.as_vec3(),
-            (radius * (1.0 + 1e-6) + self.offset) as f32,
-            &|t, tri| !exclude(self.triangle_polygon[t as usize] as usize, tri),
-        )
+        self.shaft_visit(a, b, radius, None, &mut |_, polygon, tri| {
+            !exclude(polygon, tri)
+        })
     }
 
     /// Calls `visit(packet, polygon, vertices)` for every surface triangle that may lie in
@@ -1075,9 +1060,17 @@ impl Visibility {
     /// (from [`Visibility::shaft_visit`]): the same answer when they hold every triangle that
     /// could cross the segment, without traversing the BVH.
     pub fn visible_among(&self, packets: &[u32], x: DVec3, nx: DVec3, y: DVec3, ny: DVec3) -> bool {
-        let a = (x + nx * self.offset).as_vec3();
-        let b = (y + ny * self.offset).as_vec3();
+        let (a, b) = self.lifted(x, nx, y, ny);
         !self.bvh.segment_occluded_among(packets, a, b, 1e-5)
+    }
+
+    /// The ends of a visibility segment from `x` (normal `nx`) to `y` (normal `ny`), each
+    /// lifted off its surface by the ray offset.
+    fn lifted(&self, x: DVec3, nx: DVec3, y: DVec3, ny: DVec3) -> (Vec3, Vec3) {
+        (
+            (x + nx * self.offset).as_vec3(),
+            (y + ny * self.offset).as_vec3(),
+        )
     }
 
     /// How far ray ends are lifted off their surfaces, m.
@@ -1093,8 +1086,7 @@ impl Visibility {
     /// True when nothing blocks the segment from `x` (on a surface with normal `nx`) to `y`
     /// (on a surface with normal `ny`).
     pub fn visible(&self, x: DVec3, nx: DVec3, y: DVec3, ny: DVec3) -> bool {
-        let a = (x + nx * self.offset).as_vec3();
-        let b = (y + ny * self.offset).as_vec3();
+        let (a, b) = self.lifted(x, nx, y, ny);
         !self.bvh.segment_occluded(a, b, 1e-5)
     }
 

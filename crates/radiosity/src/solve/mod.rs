@@ -499,18 +499,15 @@ impl ErrorEstimate {
             0.0
         };
         let mut change: f64 = 0.0;
-        for (x, y) in before.iter().zip(after) {
-            let scale = y[0].max(y[1]).max(y[2]).max(floor);
-            if scale > 0.0 {
-                for c in 0..3 {
-                    change = change.max((y[c] - x[c]).abs() / scale);
-                }
-            }
-        }
         let mut power = [0.0; 3];
         for ((e, x), y) in mesh.elements.iter().zip(before).zip(after) {
+            let scale = y[0].max(y[1]).max(y[2]).max(floor);
             for c in 0..3 {
-                power[c] += e.area * (y[c] - x[c]).abs();
+                let step = (y[c] - x[c]).abs();
+                if scale > 0.0 {
+                    change = change.max(step / scale);
+                }
+                power[c] += e.area * step;
             }
         }
         let balance = (0..3)
