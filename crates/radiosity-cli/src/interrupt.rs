@@ -6,6 +6,7 @@
 //! ctrlc allows one handler per process; anything else that must happen on an interrupt
 //! belongs in this one.
 
+use std::io::Write;
 use std::sync::Mutex;
 
 /// What a command asks to happen on an interrupt instead of exiting: returns true when it has
@@ -27,7 +28,10 @@ pub fn remove_temporaries_on_signal() {
             return;
         }
         radiosity::io::atomic::remove_temporaries();
-        eprintln!("\ninterrupted");
+        // Not eprintln!: it panics when stderr is a closed pipe (the terminal or the job that
+        // started us is gone), and a panic here ended this thread instead of the process,
+        // which then ran on, ignoring SIGTERM.
+        let _ = writeln!(std::io::stderr(), "\ninterrupted");
         std::process::exit(130);
     });
 }

@@ -25,7 +25,9 @@ fn written_temporaries(dir: &Path) -> Vec<String> {
         .collect()
 }
 
-fn interrupt_the_write(signal: &str) {
+/// `closed_stderr`: the reading end of the program's stderr is closed first (its terminal or
+/// the job that started it is gone), so that the handler's message cannot be written.
+fn interrupt_the_write(signal: &str, closed_stderr: bool) {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("big.solution.json");
     let mut child = Command::new(env!("CARGO_BIN_EXE_radiosity"))
@@ -36,6 +38,9 @@ fn interrupt_the_write(signal: &str) {
         .stderr(Stdio::piped())
         .spawn()
         .expect("run radiosity");
+    if closed_stderr {
+        drop(child.stderr.take());
+    }
     let deadline = Instant::now() + Duration::from_secs(300);
     loop {
         if !written_temporaries(dir.path()).is_empty() {
@@ -72,10 +77,18 @@ fn interrupt_the_write(signal: &str) {
 
 #[test]
 fn sigint_during_a_write_leaves_no_file_behind() {
-    interrupt_the_write("INT");
+    interrupt_the_write("INT", false);
 }
 
 #[test]
 fn sigterm_during_a_write_leaves_no_file_behind() {
-    interrupt_the_write("TERM");
+    interrupt_the_write("TERM", false);
+}
+
+/// Regression: the handler printed its message with `eprintln!`, which panics when stderr is
+/// a closed pipe; the panic ended the handler's thread instead of the process, and the solve
+/// ran on to the end, deaf to SIGTERM.
+#[test]
+fn sigterm_ends_the_program_when_nobody_reads_its_stderr() {
+    interrupt_the_write("TERM", true);
 }

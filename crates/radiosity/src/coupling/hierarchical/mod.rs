@@ -443,6 +443,14 @@ impl Hierarchical {
         }
     }
 
+    /// Whether `node` is a cluster smaller than two elements of the minimum area (many small
+    /// input polygons: a finely tessellated curved object): it receives as one element, so
+    /// that the hierarchy, not the input, sets the cost.
+    fn element_sized(&self, node: u32) -> bool {
+        let n = &self.tree.nodes[node as usize];
+        n.kind == Kind::Cluster && n.area < 2.0 * self.min_area
+    }
+
     /// The irradiance error (W·m⁻²) per channel that a link into node `p` may cause:
     /// ε times the irradiance of the input polygon `p` belongs to (a cluster: its own), or
     /// of the floor β · H̄_scene for surfaces darker than that.
@@ -597,8 +605,10 @@ impl Hierarchical {
             return Decision::Drop;
         }
         if p == q {
-            return if np.is_polygon() {
-                Decision::Drop // a planar polygon does not see itself
+            return if np.is_polygon() || self.element_sized(p) {
+                // A planar polygon does not see itself; nor is light exchanged within an
+                // element-sized cluster.
+                Decision::Drop
             } else {
                 Decision::Split(p)
             };
@@ -630,7 +640,7 @@ impl Hierarchical {
             }
         }
         let source_dominates = uniformity > geometric;
-        let can_p = self.divisible(p);
+        let can_p = self.divisible(p) && !self.element_sized(p);
         let can_q = self.divisible(q);
         match estimate.transfer {
             Some(transfer) if within || at_cap || (!can_p && !can_q) => Decision::Accept(Link {
@@ -731,7 +741,9 @@ impl Hierarchical {
                 }
             }
             (false, true) => {
-                if self.oriented(p, q) && self.in_front(p, q) {
+                if self.element_sized(p) {
+                    Route::ElementPolygon
+                } else if self.oriented(p, q) && self.in_front(p, q) {
                     Route::ClusterPolygon
                 } else {
                     Route::Wide {
@@ -759,6 +771,7 @@ impl Hierarchical {
             Route::PolygonPolygon => self.polygon_polygon(p, q),
             Route::Sampled(receiver) => self.sampled(p, q, receiver),
             Route::ClusterPolygon => self.cluster_polygon(p, q),
+            Route::ElementPolygon => self.element_polygon(p, q),
             Route::Wide { open_p, open_q } => self.wide(p, q, open_p, open_q, refuse_above),
         }
     }
@@ -930,7 +943,10 @@ impl Hierarchical {
         // along the columns could be missed by every point, and the Cornell box's floor
         // read 1.3 % bright in direct light;
         // `direct_light_on_the_cornell_floor_matches_a_brute_force_integral`.)
-        let estimate = |stride: usize| {
+        // The quick pass's answers, point k's sub-area j at k · count + j: the full pass
+        // casts the same rays again, so it reuses them (a quarter of its rays; same results).
+        let mut answers: Vec<Option<bool>> = vec![None; points.len() * count];
+        let estimate = |stride: usize, answers: &mut [Option<bool>]| {
             let mut fractions = Vec::with_capacity(points.len());
             for (k, &(x, _)) in points.iter().enumerate() {
                 let (mut seen, mut all) = (0.0, 0.0);
@@ -955,7 +971,9 @@ impl Hierarchical {
                         continue;
                     }
                     all += weight;
-                    if self.visible(shaft, x, n, y, source.normal) {
+                    let visible = *answers[k * count + j]
+                        .get_or_insert_with(|| self.visible(shaft, x, n, y, source.normal));
+                    if visible {
                         seen += weight;
                     }
                 }
@@ -968,12 +986,12 @@ impl Hierarchical {
             fractions
         };
         let stride = (count / 4).max(1);
-        let quick = estimate(stride);
+        let quick = estimate(stride, &mut answers);
         let partial = quick.iter().any(|&(v, faced)| faced && v > 0.0 && v < 1.0)
             || (quick.iter().any(|&(v, faced)| faced && v == 0.0)
                 && quick.iter().any(|&(v, faced)| faced && v == 1.0));
         if stride > 1 && partial {
-            estimate(1)
+            estimate(1, &mut answers)
         } else {
             quick
         }
@@ -1084,6 +1102,44 @@ impl Hierarchical {
             transfer: Some(Transfer::ToCluster(g.as_vec3().to_array())),
             delta: (hi - lo).max(0.0),
             mean: g.dot(np.axis).abs(),
+            source_dominates: false,
+            must_open_p: false,
+            must_open_q: false,
+        }
+    }
+
+    /// Element-sized cluster ← polygon: the cluster cannot open (its members are smaller than
+    /// the minimum element), so it receives as one element, the same irradiance on every
+    /// member: the mean over its area-stratified sample points (each with its own member's
+    /// normal) of the exact point-to-polygon form factor (Lambert's contour formula) times the
+    /// visible fraction of the source. What splitting the source can still improve is the
+    /// partial visibility, which is the error; the spread among the members' orientations is
+    /// the element's own, as the constant radiosity over a polygon element is.
+    fn element_polygon(&self, p: u32, q: u32) -> Estimate {
+        let shaft = self.shaft(p, q);
+        let samples = self.tree.sample_points(p, self.options.cluster_samples);
+        let source = self.source(q);
+        let (mut open, mut seen) = (0.0, 0.0);
+        for (i, &(x, n)) in samples.iter().enumerate() {
+            let f = point_to_polygon(x, n, &source.vertices, source.normal);
+            if f <= 0.0 {
+                continue;
+            }
+            let v = if shaft == Shaft::Clear {
+                1.0
+            } else {
+                self.visible_fractions(&[(x, 1.0)], n, source, &shaft, i as u64)[0].0
+            };
+            open += f;
+            seen += f * v;
+        }
+        let count = samples.len().max(1) as f64;
+        let (open, c) = (open / count, seen / count);
+        let v = if open > 0.0 { c / open } else { 1.0 };
+        Estimate {
+            transfer: Some(Transfer::Uniform(c as f32)),
+            delta: open * 2.0 * v.min(1.0 - v),
+            mean: c,
             source_dominates: false,
             must_open_p: false,
             must_open_q: false,
@@ -1202,16 +1258,21 @@ impl Hierarchical {
         refuse_above: Option<&[f64; 3]>,
     ) -> Estimate {
         let nq = &self.tree.nodes[q as usize];
+        // An element-sized cluster cannot open: it exchanges as it is.
+        let open_p = open_p && !self.element_sized(p);
         let must = Estimate::refused(open_p, open_q);
+        let forced = !open_p && !open_q;
         // A wide receiving cluster opens where the two touch: spread uniformly, its members
         // facing the source and those facing away would read the same irradiance.
-        let Some(bound) = self.wide_bound(p, q) else {
-            return must;
+        let bound = match self.wide_bound(p, q) {
+            Some(bound) => bound,
+            None if forced => f64::INFINITY,
+            None => return must,
         };
         // The link's error is at least bound · B_q^max: where that alone is over the
         // tolerance the link opens whatever the samples say, so they are not taken (most wide
         // candidates; identical links, fewer rays).
-        if let Some(threshold) = refuse_above {
+        if let Some(threshold) = refuse_above.filter(|_| !forced) {
             let b_max = &self.state[q as usize].b_max;
             if (0..3).any(|c| bound * b_max[c] > threshold[c]) {
                 return must;
@@ -1399,6 +1460,8 @@ enum Route {
     Sampled(End),
     /// Oriented cluster ← polygon.
     ClusterPolygon,
+    /// Element-sized cluster (one that cannot open) ← polygon.
+    ElementPolygon,
     /// A wide cluster at one end or both: those that must open if the link is refused.
     Wide { open_p: bool, open_q: bool },
 }
