@@ -1,16 +1,19 @@
 //! Hierarchical radiosity against scene size: time, links, leaves and peak memory for the
-//! tessellated Cornell box (38 k² input triangles, [`radiosity::generate::tessellated`]) and
-//! furnished rooms of N boxes and shelves ([`radiosity::generate::furnished_room`], seed 1),
-//! with the growth exponent of time in input size fitted by least squares on log–log axes.
+//! tessellated Cornell box (38 k² input triangles, [`radiosity::generate::tessellated`]),
+//! the Cornell box with two spheres of 8 k(k − 1) triangles
+//! ([`radiosity::generate::cornell_with_spheres`]: curved surfaces, whose triangles do not
+//! merge) and furnished rooms of N boxes and shelves ([`radiosity::generate::furnished_room`],
+//! seed 1), with the growth exponent of time in input size fitted by least squares on
+//! log–log axes.
 //!
 //! Each size runs in its own process, so that its peak resident memory (`VmHWM`) is its own.
 //!
 //! Run: `cargo bench -p radiosity --bench scale` (sizes that run in a few minutes on two
 //! cores), or with `-- --full` up to the 1 M-triangle Cornell box and 10⁵ furnished
-//! objects; `-- cornell` or `-- room` runs one family.
+//! objects; `-- cornell`, `-- spheres` or `-- room` runs one family.
 
 use radiosity::coupling::hierarchical::HierarchicalOptions;
-use radiosity::generate::{furnished_room, tessellated};
+use radiosity::generate::{cornell_with_spheres, furnished_room, tessellated};
 use radiosity::scene::Scene;
 use radiosity::solve::{NoObserver, SolveOptions, SolverKind};
 use radiosity::FormFactorMethod;
@@ -36,6 +39,7 @@ struct Row {
 fn scene(family: &str, size: usize) -> Scene {
     match family {
         "cornell" => tessellated(&radiosity::cornell::cornell_box(), size),
+        "spheres" => cornell_with_spheres(size),
         _ => furnished_room(size, 1),
     }
 }
@@ -140,7 +144,7 @@ fn main() {
     let full = args.iter().any(|a| a == "--full");
     let only = args
         .iter()
-        .find(|a| *a == "cornell" || *a == "room")
+        .find(|a| *a == "cornell" || *a == "spheres" || *a == "room")
         .cloned();
     let families: Vec<(&str, Vec<usize>)> = vec![
         (
@@ -149,6 +153,14 @@ fn main() {
                 vec![16, 36, 81, 162]
             } else {
                 vec![16, 23, 32, 45]
+            },
+        ),
+        (
+            "spheres",
+            if full {
+                vec![16, 50, 112, 158]
+            } else {
+                vec![16, 35, 50]
             },
         ),
         (

@@ -1,7 +1,8 @@
 //! Procedural scenes of any size, for scaling studies and tests: the Cornell box with every
 //! polygon tessellated into many small ones (the same box, so the same answer, from
-//! k² times the input), and a closed room furnished with N boxes and shelves at random
-//! (fixed seed), lit by a grid of ceiling panels.
+//! k² times the input), the Cornell box with two finely tessellated spheres (curved
+//! surfaces, whose triangles do not merge back into polygons), and a closed room furnished
+//! with N boxes and shelves at random (fixed seed), lit by a grid of ceiling panels.
 
 use crate::geometry::Polygon;
 use crate::scene::{Material, MaterialId, Origin, Scene, Surface};
@@ -252,6 +253,72 @@ pub fn furnished_room(objects: usize, seed: u64) -> Scene {
     }
 }
 
+/// The triangles of a UV sphere about `centre`: `rings` bands of `2 · rings` quads between
+/// parallels (the bands at the poles as triangles), each quad cut in two, counter-clockwise
+/// seen from outside: `4 · rings · (rings − 1)` triangles, their vertices on the sphere.
+pub fn uv_sphere(centre: DVec3, radius: f64, rings: usize) -> Vec<[DVec3; 3]> {
+    let rings = rings.max(2);
+    let columns = 2 * rings;
+    let at = |i: usize, j: usize| {
+        let theta = std::f64::consts::PI * i as f64 / rings as f64;
+        let phi = std::f64::consts::TAU * (j % columns) as f64 / columns as f64;
+        centre
+            + radius
+                * DVec3::new(
+                    theta.sin() * phi.cos(),
+                    theta.cos(),
+                    theta.sin() * phi.sin(),
+                )
+    };
+    let mut triangles = Vec::with_capacity(4 * rings * (rings - 1));
+    for i in 0..rings {
+        for j in 0..columns {
+            let (a, b, c, d) = (at(i, j), at(i, j + 1), at(i + 1, j + 1), at(i + 1, j));
+            if i > 0 {
+                triangles.push([a, b, c]);
+            }
+            if i + 1 < rings {
+                triangles.push([a, c, d]);
+            }
+        }
+    }
+    triangles
+}
+
+/// The Cornell box with two white spheres of `rings` bands each ([`uv_sphere`]): one of
+/// radius 6.5 cm resting 5 mm above the floor beside the short block's front, one of 6 cm
+/// above the short block. `8 · rings · (rings − 1)` sphere triangles (rings = 112 gives
+/// 99,456), objects "sphere0" and "sphere1", with the white walls' material.
+pub fn cornell_with_spheres(rings: usize) -> Scene {
+    let mut scene = crate::cornell::cornell_box();
+    let white = scene.surfaces[scene
+        .surfaces
+        .iter()
+        .position(|s| s.object == "back_wall")
+        .expect("the Cornell box has a back wall")]
+    .material;
+    let spheres = [
+        (DVec3::new(0.42, 0.07, 0.10), 0.065),
+        (DVec3::new(0.15, 0.30, 0.15), 0.06),
+    ];
+    for (k, (centre, radius)) in spheres.into_iter().enumerate() {
+        for t in uv_sphere(centre, radius, rings) {
+            // Triangles of a sphere of positive radius have area.
+            if let Ok(polygon) = Polygon::new(t.to_vec()) {
+                scene.surfaces.push(Surface {
+                    object: format!("sphere{k}"),
+                    group: String::new(),
+                    material: white,
+                    polygon,
+                    origin: Origin::default(),
+                });
+            }
+        }
+    }
+    scene.name = format!("cornell_spheres_{rings}");
+    scene
+}
+
 /// A box with one corner at `lo`, horizontal edges `a` and `b` (a × b pointing up) and
 /// height `tall`, faces pointing out; the bottom face only when `bottom` (a box standing on
 /// the floor has none).
@@ -304,6 +371,40 @@ mod tests {
             assert!((a1 / a0 - 1.0).abs() < 1e-9, "{name}: {a0} → {a1}");
             assert!((n1 / a1 - n0 / a0).length() < 1e-9, "{name}");
         }
+    }
+
+    #[test]
+    fn a_uv_sphere_is_closed_faces_out_and_has_the_sphere_area() {
+        let (centre, radius) = (DVec3::new(1.0, 2.0, 3.0), 0.5);
+        for rings in [2, 3, 16, 50] {
+            let triangles = uv_sphere(centre, radius, rings);
+            assert_eq!(triangles.len(), 4 * rings * (rings - 1));
+            let (mut area, mut vector) = (0.0, DVec3::ZERO);
+            for t in &triangles {
+                let n = (t[1] - t[0]).cross(t[2] - t[0]) * 0.5;
+                let centroid = (t[0] + t[1] + t[2]) / 3.0;
+                assert!(n.dot(centroid - centre) > 0.0, "a triangle faces in");
+                for v in t {
+                    assert!((v.distance(centre) - radius).abs() < 1e-12);
+                }
+                area += n.length();
+                vector += n;
+            }
+            // Closed: Σ A n = 0 to rounding.
+            assert!(vector.length() < 1e-12 * area);
+            // An inscribed polyhedron has less area than the sphere, approaching it as
+            // (1 − O(1/rings²)); 5 % of 4πr² at 16 rings or more.
+            let sphere = 4.0 * std::f64::consts::PI * radius * radius;
+            assert!(area < sphere);
+            if rings >= 16 {
+                assert!(
+                    area > 0.95 * sphere,
+                    "{rings} rings: {area} against {sphere}"
+                );
+            }
+        }
+        let scene = cornell_with_spheres(10);
+        assert_eq!(scene.surfaces.len(), 20 + 2 * 4 * 10 * 9);
     }
 
     #[test]

@@ -248,38 +248,6 @@ fn clip_to_hemisphere(x: DVec3, n: DVec3, polygon: &[DVec3]) -> Vec<DVec3> {
     out
 }
 
-/// A UV sphere of `rings` bands of `2 · rings` quads (the poles' bands as triangles), each
-/// quad cut in two, counter-clockwise seen from outside: `4 · rings · (rings − 1)` triangles.
-fn uv_sphere(centre: DVec3, radius: f64, rings: usize) -> Vec<[DVec3; 3]> {
-    let columns = 2 * rings;
-    let at = |i: usize, j: usize| {
-        let (theta, phi) = (
-            PI * i as f64 / rings as f64,
-            2.0 * PI * (j % columns) as f64 / columns as f64,
-        );
-        centre
-            + radius
-                * DVec3::new(
-                    theta.sin() * phi.cos(),
-                    theta.cos(),
-                    theta.sin() * phi.sin(),
-                )
-    };
-    let mut triangles = Vec::new();
-    for i in 0..rings {
-        for j in 0..columns {
-            let (a, b, c, d) = (at(i, j), at(i, j + 1), at(i + 1, j + 1), at(i + 1, j));
-            if i > 0 {
-                triangles.push([a, b, c]);
-            }
-            if i + 1 < rings {
-                triangles.push([a, c, d]);
-            }
-        }
-    }
-    triangles
-}
-
 /// A white sphere in a black box open on one side whose five walls glow with radiance 1:
 /// nothing comes back to the sphere, so at each of its points the irradiance is π times
 /// 1 − F(x → opening), the form factor to the opening by Lambert's formula (clipped to the
@@ -312,7 +280,7 @@ fn a_finely_tessellated_sphere_receives_as_elements_of_the_minimum_size() {
             .iter()
             .map(|v| (v.to_vec(), "walls", 0))
             .chain(
-                uv_sphere(p(0.45, 0.4, 0.6), 0.15, rings)
+                radiosity::generate::uv_sphere(p(0.45, 0.4, 0.6), 0.15, rings)
                     .iter()
                     .map(|t| (t.to_vec(), "sphere", 1)),
             )
