@@ -350,6 +350,119 @@ fn a_finely_tessellated_sphere_receives_as_elements_of_the_minimum_size() {
     );
 }
 
+/// A thin corrugated wall of tiny triangles (both faces, 1 cm apart) standing on a glowing floor panel
+/// that lies in front of it: nothing reflects, so the front's mean irradiance is π L times
+/// its triangles' form factors to the panel (Lambert's formula over 16 points of each
+/// triangle, independent of the solver), and the back, facing away, gets nothing. The
+/// wall's triangles are far smaller than the minimum element, so they receive in clusters
+/// of element size; such a cluster must not hold both faces, and must open where it touches
+/// the panel.
+///
+/// Regression (measured in the Šibenik cathedral, 73,564 triangles, its stained glass
+/// glowing, against the solve with one receiver per triangle): element-sized clusters whose
+/// members faced opposite ways shared their light (the stone tracery of the rose window
+/// read 48 % dark); and beside the glowing glass the mean of a cluster's four sample points
+/// missed the bright rim (24 % dark). Here the gain is small (+1.08 % to +0.69 %).
+#[test]
+fn a_thin_tessellated_wall_on_a_glowing_floor_is_lit_on_its_front_alone() {
+    use radiosity::geometry::Polygon;
+    use radiosity::scene::{Material, Surface};
+    let p = |x: f64, y: f64, z: f64| DVec3::new(x, y, z);
+    let (nx, ny) = (40, 20);
+    let (width, height, thickness) = (1.0, 0.5, 0.01);
+    // Triangles of the face at depth z, facing +z when `front`.
+    let face = |z: f64, front: bool| {
+        let mut tris = Vec::new();
+        for i in 0..nx {
+            for j in 0..ny {
+                let (x0, x1) = (
+                    width * i as f64 / nx as f64,
+                    width * (i + 1) as f64 / nx as f64,
+                );
+                let (y0, y1) = (
+                    height * j as f64 / ny as f64,
+                    height * (j + 1) as f64 / ny as f64,
+                );
+                // Corrugated 1 mm deep (waves of 7 and 9 cm along x and y), so that the
+                // triangles do not merge back into a plane.
+                let at =
+                    |x: f64, y: f64| p(x, y, z + 0.001 * (2.0 * PI * (x / 0.07 + y / 0.09)).sin());
+                let (a, b, c, d) = (at(x0, y0), at(x1, y0), at(x1, y1), at(x0, y1));
+                if front {
+                    tris.push(vec![a, b, c]);
+                    tris.push(vec![a, c, d]);
+                } else {
+                    tris.push(vec![a, c, b]);
+                    tris.push(vec![a, d, c]);
+                }
+            }
+        }
+        tris
+    };
+    let front = face(0.0, true);
+    let back = face(-thickness, false);
+    let panel = vec![p(0., 0., 0.), p(0., 0., 0.5), p(1., 0., 0.5), p(1., 0., 0.)];
+    let radiance = 1.0;
+    let scene = Scene {
+        name: "thin wall on a glowing floor".into(),
+        materials: vec![
+            Material::new("black", [0.0; 3], [0.0; 3]),
+            Material::new("glow", [0.0; 3], [radiance; 3]),
+        ],
+        surfaces: std::iter::once((panel.clone(), "panel", 1))
+            .chain(front.iter().map(|t| (t.clone(), "front", 0)))
+            .chain(back.iter().map(|t| (t.clone(), "back", 0)))
+            .map(|(v, name, m)| Surface {
+                object: name.into(),
+                group: String::new(),
+                material: MaterialId(m),
+                polygon: Polygon::new(v).unwrap(),
+                origin: Default::default(),
+            })
+            .collect(),
+        lights: Vec::new(),
+        camera: None,
+    };
+    let mut settings = hierarchical(0.01);
+    settings.hierarchical.min_area_fraction = 3e-3;
+    let (_, report) = solve(&scene, &settings);
+    let (mut expected, mut area) = (0.0, 0.0);
+    for t in &front {
+        let a = 0.5 * (t[1] - t[0]).cross(t[2] - t[0]).length();
+        let mut f = 0.0;
+        for i in 0..4 {
+            for j in 0..4 - i {
+                // 10 points of a 4-level barycentric lattice, at the sub-triangles' centroids.
+                let (u, v) = ((i as f64 + 1.0 / 3.0) / 4.0, (j as f64 + 1.0 / 3.0) / 4.0);
+                let x = t[0] + (t[1] - t[0]) * u + (t[2] - t[0]) * v;
+                let n = (t[1] - t[0]).cross(t[2] - t[0]).normalize();
+                let seen = clip_to_hemisphere(x, n, &panel);
+                if seen.len() >= 3 {
+                    f += lambert(x, n, &seen);
+                }
+            }
+        }
+        expected += a * PI * radiance * f / 10.0;
+        area += a;
+    }
+    let expected = expected / area;
+    let lit = report.object("front").unwrap().irradiance[0];
+    let dark = report.object("back").unwrap().irradiance[0];
+    // What remains is the far clusters' four sample points against the lattice over every
+    // triangle, and the corrugation's own shading of the grazing light, which the reference
+    // leaves out (measured +0.69 %; +1.08 % when the clusters touching the panel received
+    // as one). The back must read nothing (measured 6.5e-5 of the front, the clusters'
+    // gradients at the rim).
+    assert!(
+        (lit - expected).abs() <= 0.01 * expected,
+        "front: {lit:.5} W/m² against Lambert's integral {expected:.5}"
+    );
+    assert!(
+        dark <= 1e-3 * expected,
+        "back: {dark:.5} W/m², front {lit:.5}"
+    );
+}
+
 /// A dim lamp on the floor against a long wall lit by a bright panel: the irradiance of
 /// every element of the wall against Lambert's formula integrated over it (16 × 16 cells),
 /// and the wall's power against the same over the wall (2000 × 300 cells). Nothing
