@@ -215,6 +215,29 @@ fn direct_light_on_the_cornell_floor_matches_a_brute_force_integral() {
     }
 }
 
+/// A scene of the named polygons, each (vertices, object name, material index).
+fn scene_of(
+    name: &str,
+    materials: Vec<radiosity::scene::Material>,
+    polygons: impl Iterator<Item = (Vec<DVec3>, &'static str, u32)>,
+) -> Scene {
+    Scene {
+        name: name.into(),
+        materials,
+        surfaces: polygons
+            .map(|(v, object, m)| radiosity::scene::Surface {
+                object: object.into(),
+                group: String::new(),
+                material: MaterialId(m),
+                polygon: radiosity::geometry::Polygon::new(v).unwrap(),
+                origin: Default::default(),
+            })
+            .collect(),
+        lights: Vec::new(),
+        camera: None,
+    }
+}
+
 /// The form factor from a point x with normal n to a convex polygon, by Lambert's contour
 /// formula: F = (1/2π) Σ_i γ_i n · (r_i × r_{i+1}) / |r_i × r_{i+1}|, r_i = v_i − x, γ_i the
 /// angle between r_i and r_{i+1}.
@@ -259,8 +282,7 @@ fn clip_to_hemisphere(x: DVec3, n: DVec3, polygon: &[DVec3]) -> Vec<DVec3> {
 /// 69 s and 1.92 M links at the default settings (0.8 s and 76,452 links without them).
 #[test]
 fn a_finely_tessellated_sphere_receives_as_elements_of_the_minimum_size() {
-    use radiosity::geometry::Polygon;
-    use radiosity::scene::{Material, Surface};
+    use radiosity::scene::Material;
     let p = |x: f64, y: f64, z: f64| DVec3::new(x, y, z);
     let walls = [
         [p(0., 0., 0.), p(0., 0., 1.), p(1., 0., 1.), p(1., 0., 0.)],
@@ -270,30 +292,19 @@ fn a_finely_tessellated_sphere_receives_as_elements_of_the_minimum_size() {
         [p(1., 0., 0.), p(1., 0., 1.), p(1., 1., 1.), p(1., 1., 0.)],
     ];
     let opening = [p(0., 0., 1.), p(0., 1., 1.), p(1., 1., 1.), p(1., 0., 1.)];
-    let scene = |rings: usize| Scene {
-        name: "sphere in a glowing box".into(),
-        materials: vec![
-            Material::new("glow", [0.0; 3], [1.0; 3]),
-            Material::new("white", [0.5; 3], [0.0; 3]),
-        ],
-        surfaces: walls
-            .iter()
-            .map(|v| (v.to_vec(), "walls", 0))
-            .chain(
+    let scene = |rings: usize| {
+        scene_of(
+            "sphere in a glowing box",
+            vec![
+                Material::new("glow", [0.0; 3], [1.0; 3]),
+                Material::new("white", [0.5; 3], [0.0; 3]),
+            ],
+            walls.iter().map(|v| (v.to_vec(), "walls", 0)).chain(
                 radiosity::generate::uv_sphere(p(0.45, 0.4, 0.6), 0.15, rings)
                     .iter()
                     .map(|t| (t.to_vec(), "sphere", 1)),
-            )
-            .map(|(v, name, m)| Surface {
-                object: name.into(),
-                group: String::new(),
-                material: MaterialId(m),
-                polygon: Polygon::new(v).unwrap(),
-                origin: Default::default(),
-            })
-            .collect(),
-        lights: Vec::new(),
-        camera: None,
+            ),
+        )
     };
     let mut settings = hierarchical(0.01);
     settings.hierarchical.min_area_fraction = 3e-4;
@@ -365,8 +376,7 @@ fn a_finely_tessellated_sphere_receives_as_elements_of_the_minimum_size() {
 /// missed the bright rim (24 % dark). Here the gain is small (+1.08 % to +0.69 %).
 #[test]
 fn a_thin_tessellated_wall_on_a_glowing_floor_is_lit_on_its_front_alone() {
-    use radiosity::geometry::Polygon;
-    use radiosity::scene::{Material, Surface};
+    use radiosity::scene::Material;
     let p = |x: f64, y: f64, z: f64| DVec3::new(x, y, z);
     let (nx, ny) = (40, 20);
     let (width, height, thickness) = (1.0, 0.5, 0.01);
@@ -403,26 +413,16 @@ fn a_thin_tessellated_wall_on_a_glowing_floor_is_lit_on_its_front_alone() {
     let back = face(-thickness, false);
     let panel = vec![p(0., 0., 0.), p(0., 0., 0.5), p(1., 0., 0.5), p(1., 0., 0.)];
     let radiance = 1.0;
-    let scene = Scene {
-        name: "thin wall on a glowing floor".into(),
-        materials: vec![
+    let scene = scene_of(
+        "thin wall on a glowing floor",
+        vec![
             Material::new("black", [0.0; 3], [0.0; 3]),
             Material::new("glow", [0.0; 3], [radiance; 3]),
         ],
-        surfaces: std::iter::once((panel.clone(), "panel", 1))
+        std::iter::once((panel.clone(), "panel", 1))
             .chain(front.iter().map(|t| (t.clone(), "front", 0)))
-            .chain(back.iter().map(|t| (t.clone(), "back", 0)))
-            .map(|(v, name, m)| Surface {
-                object: name.into(),
-                group: String::new(),
-                material: MaterialId(m),
-                polygon: Polygon::new(v).unwrap(),
-                origin: Default::default(),
-            })
-            .collect(),
-        lights: Vec::new(),
-        camera: None,
-    };
+            .chain(back.iter().map(|t| (t.clone(), "back", 0))),
+    );
     let mut settings = hierarchical(0.01);
     settings.hierarchical.min_area_fraction = 3e-3;
     let (_, report) = solve(&scene, &settings);
