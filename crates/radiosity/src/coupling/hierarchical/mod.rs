@@ -1298,7 +1298,8 @@ impl Hierarchical {
         refuse_above: Option<&[f64; 3]>,
     ) -> Estimate {
         let nq = &self.tree.nodes[q as usize];
-        // An element-sized cluster cannot open: it exchanges as it is.
+        // A cluster that receives whole (element-sized, no source near) cannot open: it
+        // exchanges as it is.
         let open_p = open_p && !self.receives_whole(p, q);
         let must = Estimate::refused(open_p, open_q);
         let forced = !open_p && !open_q;
