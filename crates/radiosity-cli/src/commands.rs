@@ -176,12 +176,8 @@ pub(crate) fn run_solve(scene: &Scene, settings: &Settings, args: &SolveArgs) ->
                 h.bytes as f64 / f64::from(1 << 20),
                 h.epsilon
             );
-            if h.capped {
-                eprintln!(
-                    "warning: link refinement stopped at the memory limit, so some links are \
-                     coarser than ε {}: the result is less accurate than asked",
-                    h.epsilon
-                );
+            for warning in h.warnings() {
+                eprintln!("warning: {warning}");
             }
         }
     }
@@ -219,6 +215,9 @@ fn solve(args: SolveCmdArgs) -> Result<()> {
     )
     .with_lights(&scene.lights);
     report.warnings = loaded.warnings.clone();
+    if let Some(h) = &solved.hierarchy {
+        report.warnings.extend(h.warnings());
+    }
     if !args.solve.quiet {
         let t = &report.totals;
         let fmt = |p: [f64; 3]| format!("({:.4}, {:.4}, {:.4}) W", p[0], p[1], p[2]);

@@ -41,7 +41,7 @@ pub struct Solved {
 }
 
 /// The size of a hierarchical solution.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct HierarchyStats {
     /// The link tolerance ε it was refined to.
     pub epsilon: f64,
@@ -54,6 +54,40 @@ pub struct HierarchyStats {
     /// The hierarchy's estimated memory, bytes: nodes, links and prepared sources, what the
     /// memory limit is checked against.
     pub bytes: u64,
+    /// Objects with elements whose links gathered more than their hemisphere (coincident or
+    /// crossing copies of a surface), their irradiance scaled down, and how many elements.
+    pub overfull: Vec<(String, usize)>,
+}
+
+impl HierarchyStats {
+    /// What the user should know about the result: refinement stopped at the memory limit,
+    /// or elements that gathered more than their hemisphere.
+    pub fn warnings(&self) -> Vec<String> {
+        let mut out = Vec::new();
+        if self.capped {
+            out.push(format!(
+                "link refinement stopped at the memory limit, so some links are coarser than \
+                 ε {}: the result is less accurate than asked",
+                self.epsilon
+            ));
+        }
+        if !self.overfull.is_empty() {
+            let elements: usize = self.overfull.iter().map(|o| o.1).sum();
+            let named: Vec<String> = self
+                .overfull
+                .iter()
+                .take(5)
+                .map(|(object, n)| format!("'{object}' ({n})"))
+                .collect();
+            let more = if self.overfull.len() > 5 { ", …" } else { "" };
+            out.push(format!(
+                "{elements} elements gathered more than their hemisphere, so their light was \
+                 scaled down: coincident or crossing copies of a surface? In {}{more}",
+                named.join(", ")
+            ));
+        }
+        out
+    }
 }
 
 /// Why solving failed.
@@ -111,6 +145,7 @@ pub fn solve_scene_observed(
                 nodes: solved.nodes,
                 capped: solved.capped,
                 bytes: solved.bytes,
+                overfull: solved.overfull,
             }),
         });
     }

@@ -854,3 +854,73 @@ mod random_rooms {
         }
     }
 }
+
+/// Six coincident copies of a grey ceiling (ρ = 0.95, separate objects so that they do not
+/// merge) over a floor of the same grey, lit by a small lamp under the ceiling: the floor's
+/// links count every copy in full, so its leaves gather about three times their
+/// hemisphere. No surface can do that: such leaves are scaled back to their hemisphere and
+/// the solve says so, naming the object. The physics that must hold whatever the input:
+/// the surfaces absorb no more than is emitted, nothing escapes in negative amounts, the
+/// power balances (to the solver's stopping rule, 1e-4), and nothing that does not emit
+/// is brighter than ρ_max times the brightest emitter (its irradiance is at most the
+/// largest radiosity, which is then the lamp's).
+///
+/// Regression (measured on this scene with `radiosity solve` before the scaling): 3,482
+/// sweeps, the floor at 0.875 W/m² (40 times what one ceiling gives it, 0.0217 W/m²), 5.2
+/// times the emitted power absorbed and −4.2 times it escaping, without a warning; in the conference room
+/// (331,179 triangles written with six digits: stacks of near-coincident triangles) leaves
+/// gathered up to 3.9 times their hemisphere and the solve ran on for hours.
+#[test]
+fn coincident_copies_of_a_surface_gather_no_more_than_the_hemisphere() {
+    use radiosity::scene::Material;
+    let p = |x: f64, y: f64, z: f64| DVec3::new(x, y, z);
+    let floor = vec![p(0., 0., 0.), p(0., 0., 1.), p(1., 0., 1.), p(1., 0., 0.)];
+    let ceiling = vec![
+        p(0., 0.5, 0.),
+        p(1., 0.5, 0.),
+        p(1., 0.5, 1.),
+        p(0., 0.5, 1.),
+    ];
+    let lamp = vec![
+        p(0.45, 0.45, 0.45),
+        p(0.55, 0.45, 0.45),
+        p(0.55, 0.45, 0.55),
+        p(0.45, 0.45, 0.55),
+    ];
+    const CEILINGS: [&str; 6] = [
+        "ceiling0", "ceiling1", "ceiling2", "ceiling3", "ceiling4", "ceiling5",
+    ];
+    let (rho, radiance) = (0.95, 1.0);
+    let scene = scene_of(
+        "coincident ceilings",
+        vec![
+            Material::new("grey", [rho; 3], [0.0; 3]),
+            Material::new("glow", [0.0; 3], [radiance; 3]),
+        ],
+        [(floor, "floor", 0), (lamp, "lamp", 1)]
+            .into_iter()
+            .chain(CEILINGS.iter().map(|&name| (ceiling.clone(), name, 0))),
+    );
+    let (solved, report) = solve(&scene, &hierarchical(0.01));
+    let t = &report.totals;
+    assert!(
+        t.absorbed_power[0] <= t.emitted_power[0] && t.escaped_power[0] >= 0.0,
+        "emitted {:?} W, absorbed {:?} W, escaped {:?} W",
+        t.emitted_power,
+        t.absorbed_power,
+        t.escaped_power
+    );
+    assert!(report.balance_error() < 1e-4, "{}", report.balance_error());
+    let bound = rho * PI * radiance;
+    for name in std::iter::once("floor").chain(CEILINGS) {
+        let b = report.object(name).unwrap().radiosity[0];
+        assert!(b <= bound, "{name}: {b} W/m² above {bound} W/m²");
+    }
+    let overfull = &solved.hierarchy.as_ref().unwrap().overfull;
+    assert!(
+        overfull
+            .iter()
+            .any(|(object, n)| object == "floor" && *n > 0),
+        "{overfull:?}"
+    );
+}

@@ -36,6 +36,9 @@ pub struct HierarchicalSolution {
     pub capped: bool,
     /// Links accepted although their error exceeded the threshold (minimum area reached).
     pub forced: usize,
+    /// Objects with elements that gathered more than their hemisphere, scaled down, and how
+    /// many ([`Hierarchical::overfull_objects`]).
+    pub overfull: Vec<(String, usize)>,
 }
 
 /// Stages of the threshold schedule: 16 ε, 8 ε, 4 ε, 2 ε, ε.
@@ -131,6 +134,7 @@ pub fn solve(
         bytes: h.bytes(),
         capped: h.capped,
         forced: h.forced,
+        overfull: h.overfull_objects(),
         mesh: h.mesh().clone(),
         solution,
     })
