@@ -2047,14 +2047,19 @@ mod tests {
     use super::*;
     use crate::scene::{Material, MaterialId, Origin, Surface};
 
-    /// The hierarchy of `scene`, refined to `epsilon` for unit radiosity everywhere.
-    pub(super) fn refined(scene: &Scene, epsilon: f64) -> Hierarchical {
-        let mut h = Hierarchical::new(
+    /// The hierarchy of `scene` with the default options and no links yet.
+    fn unrefined(scene: &Scene) -> Hierarchical {
+        Hierarchical::new(
             scene,
             crate::formfactor::FormFactorMethod::Raycast.kernel(),
             HierarchicalOptions::default(),
         )
-        .unwrap();
+        .unwrap()
+    }
+
+    /// The hierarchy of `scene`, refined to `epsilon` for unit radiosity everywhere.
+    pub(super) fn refined(scene: &Scene, epsilon: f64) -> Hierarchical {
+        let mut h = unrefined(scene);
         let ones = vec![[1.0; 3]; h.mesh().elements.len()];
         h.set_solution(&ones, &ones);
         h.refine(epsilon);
@@ -2101,12 +2106,7 @@ mod tests {
     #[test]
     fn the_wide_link_bound_holds_at_every_receiver_point() {
         let scene = crate::generate::furnished_room(12, 7);
-        let h = Hierarchical::new(
-            &scene,
-            crate::formfactor::FormFactorMethod::Raycast.kernel(),
-            HierarchicalOptions::default(),
-        )
-        .unwrap();
+        let h = unrefined(&scene);
         let tree = h.tree();
         let nodes = tree.nodes.len() as u32;
         let members = |q: u32| -> Vec<u32> {
@@ -2388,12 +2388,7 @@ mod tests {
             lights: Vec::new(),
             camera: None,
         };
-        let h = Hierarchical::new(
-            &scene,
-            crate::formfactor::FormFactorMethod::Raycast.kernel(),
-            HierarchicalOptions::default(),
-        )
-        .unwrap();
+        let h = unrefined(&scene);
         let tree = h.tree();
         let clusters: Vec<u32> = (0..tree.nodes.len() as u32)
             .filter(|&i| {
