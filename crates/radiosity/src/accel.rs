@@ -389,52 +389,17 @@ impl Bvh {
         clip: Option<[Vec3; 2]>,
         visit: &mut dyn FnMut(u32, u32, &[Vec3; 3]) -> bool,
     ) -> bool {
-        let seg = b - a;
-        let len2 = seg.length_squared();
-        let distance = |p: Vec3| {
-            let t = if len2 > 0.0 {
-                ((p - a).dot(seg) / len2).clamp(0.0, 1.0)
-            } else {
-                0.0
-            };
-            (a + seg * t).distance(p)
-        };
-        let near = |min: Vec3, max: Vec3| {
-            if let Some([lo, hi]) = clip {
-                if min.cmpgt(hi).any() || max.cmplt(lo).any() {
-                    return false;
-                }
-            }
-            let centre = (min + max) * 0.5;
-            distance(centre) <= radius + (max - min).length() * 0.5
-        };
-        if self.len == 0 || !near(self.bounds.min.into(), self.bounds.max.into()) {
+        let near = Capsule::new(a, b, radius, clip);
+        if self.len == 0 || !near.holds(self.bounds.min.into(), self.bounds.max.into()) {
             return false;
         }
         let mut stack = vec![self.root];
         while let Some(child) = stack.pop() {
             if child.count() > 0 {
-                for k in child.first()..child.first() + child.count() {
-                    let (packet, ids) = (&self.packets[k], self.ids[k]);
-                    for lane in 0..PACKET {
-                        if lane > 0 && ids[lane] == ids[lane - 1] {
-                            continue;
-                        }
-                        let tri = [0, 1, 2].map(|v| {
-                            Vec3::new(
-                                packet.v[v][0][lane],
-                                packet.v[v][1][lane],
-                                packet.v[v][2][lane],
-                            )
-                        });
-                        let (tmin, tmax) = (
-                            tri[0].min(tri[1]).min(tri[2]),
-                            tri[0].max(tri[1]).max(tri[2]),
-                        );
-                        if near(tmin, tmax) && visit(k as u32, ids[lane], &tri) {
-                            return true;
-                        }
-                    }
+                if (child.first()..child.first() + child.count())
+                    .any(|k| self.packet_visit(k, &near, visit))
+                {
+                    return true;
                 }
             } else {
                 let node = &self.nodes[child.first()];
@@ -452,13 +417,66 @@ impl Bvh {
                         node.bounds[1][1][slot],
                         node.bounds[1][2][slot],
                     );
-                    if near(min, max) {
+                    if near.holds(min, max) {
                         stack.push(node.children[slot]);
                     }
                 }
             }
         }
         false
+    }
+
+    /// [`Bvh::capsule_visit`] over the triangles of `packets` alone (indices it gave): for a
+    /// capsule and box inside those of the visit that listed them, the same triangles
+    /// without the traversal.
+    pub fn capsule_visit_among(
+        &self,
+        packets: &[u32],
+        a: Vec3,
+        b: Vec3,
+        radius: f32,
+        clip: Option<[Vec3; 2]>,
+        visit: &mut dyn FnMut(u32, u32, &[Vec3; 3]) -> bool,
+    ) -> bool {
+        let near = Capsule::new(a, b, radius, clip);
+        packets
+            .iter()
+            .any(|&k| self.packet_visit(k as usize, &near, visit))
+    }
+
+    /// Calls `visit(k, triangle, vertices)` for each triangle of packet `k` (once each) that
+    /// may lie in `near`, until it returns true; returns whether it did.
+    fn packet_visit(
+        &self,
+        k: usize,
+        near: &Capsule,
+        visit: &mut dyn FnMut(u32, u32, &[Vec3; 3]) -> bool,
+    ) -> bool {
+        self.packet_triangles(k).any(|(id, tri)| {
+            let (min, max) = (
+                tri[0].min(tri[1]).min(tri[2]),
+                tri[0].max(tri[1]).max(tri[2]),
+            );
+            near.holds(min, max) && visit(k as u32, id, &tri)
+        })
+    }
+
+    /// The triangles of packet `k`, once each (a leaf pads its last packet with its last
+    /// triangle), as (input index, vertices).
+    fn packet_triangles(&self, k: usize) -> impl Iterator<Item = (u32, [Vec3; 3])> + '_ {
+        let (packet, ids) = (&self.packets[k], self.ids[k]);
+        (0..PACKET)
+            .filter(move |&lane| lane == 0 || ids[lane] != ids[lane - 1])
+            .map(move |lane| {
+                let tri = [0, 1, 2].map(|v| {
+                    Vec3::new(
+                        packet.v[v][0][lane],
+                        packet.v[v][1][lane],
+                        packet.v[v][2][lane],
+                    )
+                });
+                (ids[lane], tri)
+            })
     }
 
     /// Appends to `out` every triangle whose bounding box overlaps the box [`lo`, `hi`], as
@@ -473,24 +491,13 @@ impl Bvh {
         while let Some(child) = stack.pop() {
             if child.count() > 0 {
                 for k in child.first()..child.first() + child.count() {
-                    let (packet, ids) = (&self.packets[k], self.ids[k]);
-                    for lane in 0..PACKET {
-                        if lane > 0 && ids[lane] == ids[lane - 1] {
-                            continue; // a leaf pads its last packet with its last triangle
-                        }
-                        let tri = [0, 1, 2].map(|v| {
-                            Vec3::new(
-                                packet.v[v][0][lane],
-                                packet.v[v][1][lane],
-                                packet.v[v][2][lane],
-                            )
-                        });
+                    for (id, tri) in self.packet_triangles(k) {
                         let (tmin, tmax) = (
                             tri[0].min(tri[1]).min(tri[2]),
                             tri[0].max(tri[1]).max(tri[2]),
                         );
                         if overlaps(tmin, tmax) {
-                            out.push((ids[lane], tri));
+                            out.push((id, tri));
                         }
                     }
                 }
@@ -600,6 +607,46 @@ struct Ray {
     /// Shear taking the ray to the +z axis: `dir[kx]/dir[kz]`, `dir[ky]/dir[kz]`, `1/dir[kz]`,
     /// splatted.
     shear: [Vec4; 3],
+}
+
+/// The conservative test of [`Bvh::capsule_visit`]: whether a box may reach within `radius`
+/// of the segment `a`–`b` (by its bounding sphere) and overlaps `clip`.
+struct Capsule {
+    a: Vec3,
+    seg: Vec3,
+    len2: f32,
+    radius: f32,
+    clip: Option<[Vec3; 2]>,
+}
+
+impl Capsule {
+    fn new(a: Vec3, b: Vec3, radius: f32, clip: Option<[Vec3; 2]>) -> Self {
+        let seg = b - a;
+        Capsule {
+            a,
+            seg,
+            len2: seg.length_squared(),
+            radius,
+            clip,
+        }
+    }
+
+    /// Whether the box [`min`, `max`] may hold points of the capsule.
+    #[inline]
+    fn holds(&self, min: Vec3, max: Vec3) -> bool {
+        if let Some([lo, hi]) = self.clip {
+            if min.cmpgt(hi).any() || max.cmplt(lo).any() {
+                return false;
+            }
+        }
+        let centre = (min + max) * 0.5;
+        let t = if self.len2 > 0.0 {
+            ((centre - self.a).dot(self.seg) / self.len2).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        (self.a + self.seg * t).distance(centre) <= self.radius + (max - min).length() * 0.5
+    }
 }
 
 impl Ray {
@@ -1030,7 +1077,7 @@ impl Visibility {
         radius: f64,
         exclude: &dyn Fn(usize, &[Vec3; 3]) -> bool,
     ) -> bool {
-        self.shaft_visit(a, b, radius, None, &mut |_, polygon, tri| {
+        self.shaft_visit(a, b, radius, None, None, &mut |_, polygon, tri| {
             !exclude(polygon, tri)
         })
     }
@@ -1038,22 +1085,29 @@ impl Visibility {
     /// Calls `visit(packet, polygon, vertices)` for every surface triangle that may lie in
     /// the capsule of `radius` (m) about the segment `a`–`b` (as [`Visibility::maybe_blocked`]),
     /// until it returns true; returns whether it did. `packet` is for
-    /// [`Visibility::visible_among`]; `clip` as for [`Bvh::capsule_visit`].
+    /// [`Visibility::visible_among`]; `clip` as for [`Bvh::capsule_visit`]. With `among`, only
+    /// the triangles of those packets (from an earlier visit whose capsule and box held this
+    /// one's: the same triangles, without the traversal; [`Bvh::capsule_visit_among`]).
     pub fn shaft_visit(
         &self,
         a: DVec3,
         b: DVec3,
         radius: f64,
         clip: Option<[Vec3; 2]>,
+        among: Option<&[u32]>,
         visit: &mut dyn FnMut(u32, usize, &[Vec3; 3]) -> bool,
     ) -> bool {
-        self.bvh.capsule_visit(
-            a.as_vec3(),
-            b.as_vec3(),
-            (radius * (1.0 + 1e-6) + self.offset) as f32,
-            clip,
-            &mut |k, t, tri| visit(k, self.triangle_polygon[t as usize] as usize, tri),
-        )
+        let (a, b) = (a.as_vec3(), b.as_vec3());
+        let radius = (radius * (1.0 + 1e-6) + self.offset) as f32;
+        let visit = &mut |k, t: u32, tri: &[Vec3; 3]| {
+            visit(k, self.triangle_polygon[t as usize] as usize, tri)
+        };
+        match among {
+            Some(packets) => self
+                .bvh
+                .capsule_visit_among(packets, a, b, radius, clip, visit),
+            None => self.bvh.capsule_visit(a, b, radius, clip, visit),
+        }
     }
 
     /// [`Visibility::visible`] with only the triangles of `packets` as possible blockers
