@@ -362,7 +362,7 @@ impl Bvh {
     /// [`Bvh::capsule_visit`]): the same ray–triangle test, without the traversal. When every
     /// triangle that could cross the segment is in `packets`, the answer is the same.
     pub fn segment_occluded_among(&self, packets: &[u32], a: Vec3, b: Vec3, eps: f32) -> bool {
-        let Some(ray) = Ray::new(a, b - a) else {
+        let Some(ray) = ShearedRay::new(a, b - a) else {
             return false;
         };
         let range = (Vec4::splat(eps), Vec4::splat(1.0 - eps));
@@ -600,6 +600,14 @@ struct Ray {
     inv_dir_4: [Vec4; 3],
     /// Per axis, which of a box's planes the ray meets first: 0 the minimum, 1 the maximum.
     near_side: [usize; 3],
+    /// The triangle test's part.
+    sheared: ShearedRay,
+}
+
+/// What the watertight triangle test ([`ShearedRay::hit`]) needs of a ray, alone: a segment
+/// tested against a shaft's listed packets walks no boxes ([`Bvh::segment_occluded_among`]),
+/// so it skips the reciprocal and the splats those need.
+struct ShearedRay {
     /// Axes permuted so that `kz` is the direction's dominant one (`[kx, ky, kz]`).
     axes: [usize; 3],
     /// The origin's coordinate along `kx`, `ky`, `kz`, splatted.
@@ -651,41 +659,27 @@ impl Capsule {
 
 impl Ray {
     fn new(origin: Vec3, dir: Vec3) -> Option<Self> {
-        if !dir.is_finite() || !origin.is_finite() || dir == Vec3::ZERO {
-            return None;
-        }
+        let sheared = ShearedRay::new(origin, dir)?;
         let inv = dir.recip();
         let inv_dir = Vec3::select(
             inv.is_finite_mask(),
             inv,
             Vec3::splat(f32::MAX).copysign(dir),
         );
-        let abs = dir.abs();
-        let kz = if abs.x >= abs.y && abs.x >= abs.z {
-            0
-        } else if abs.y >= abs.z {
-            1
-        } else {
-            2
-        };
-        let mut kx = (kz + 1) % 3;
-        let mut ky = (kx + 1) % 3;
-        // Keep the winding, so that `u`, `v` and the sign of the determinant mean the same.
-        if dir[kz] < 0.0 {
-            std::mem::swap(&mut kx, &mut ky);
-        }
-        let axes = [kx, ky, kz];
-        let shear = [dir[kx] / dir[kz], dir[ky] / dir[kz], 1.0 / dir[kz]];
         Some(Ray {
             origin: origin.into(),
             inv_dir: inv_dir.into(),
             origin_4: [0, 1, 2].map(|a| Vec4::splat(origin[a])),
             inv_dir_4: [0, 1, 2].map(|a| Vec4::splat(inv_dir[a])),
             near_side: [0, 1, 2].map(|a| usize::from(inv_dir[a] < 0.0)),
-            axes,
-            origin_k: axes.map(|a| Vec4::splat(origin[a])),
-            shear: shear.map(Vec4::splat),
+            sheared,
         })
+    }
+
+    /// [`ShearedRay::hit`].
+    #[inline(always)]
+    fn hit(&self, packet: &Packet, range: (Vec4, Vec4)) -> (u32, Vec4, Vec4, Vec4) {
+        self.sheared.hit(packet, range)
     }
 
     /// Entry distance into `bounds` if the ray meets it within `(t_min, t_max)`.
@@ -719,6 +713,37 @@ impl Ray {
         let enter_w = enter - enter.abs() * ROBUST_WIDEN;
         let exit_w = exit + exit.abs() * ROBUST_WIDEN;
         (enter_w.cmple(exit_w).bitmask() & node.used, enter)
+    }
+}
+
+impl ShearedRay {
+    fn new(origin: Vec3, dir: Vec3) -> Option<Self> {
+        if !dir.is_finite() || !origin.is_finite() || dir == Vec3::ZERO {
+            return None;
+        }
+        let abs = dir.abs();
+        let kz = if abs.x >= abs.y && abs.x >= abs.z {
+            0
+        } else if abs.y >= abs.z {
+            1
+        } else {
+            2
+        };
+        let mut kx = (kz + 1) % 3;
+        let mut ky = (kx + 1) % 3;
+        // Keep the winding, so that `u`, `v` and the sign of the determinant mean the same.
+        if dir[kz] < 0.0 {
+            std::mem::swap(&mut kx, &mut ky);
+        }
+        let axes = [kx, ky, kz];
+        // d_kz is the largest component of a non-zero direction: its reciprocal is finite.
+        let inv_kz = 1.0 / dir[kz];
+        let shear = [dir[kx] * inv_kz, dir[ky] * inv_kz, inv_kz];
+        Some(ShearedRay {
+            axes,
+            origin_k: axes.map(|a| Vec4::splat(origin[a])),
+            shear: shear.map(Vec4::splat),
+        })
     }
 
     /// Woop, Benthin & Wald 2013, double-sided, on the four triangles of `packet` at once:

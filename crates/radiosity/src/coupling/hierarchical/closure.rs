@@ -35,7 +35,7 @@
 //! off is geometry, not link error), and no leaf's irradiance is let below zero.
 
 use super::tree::NONE;
-use super::{gather_with, pull_state, Hierarchical, Link, State, Transfer};
+use super::{Hierarchical, Link, State, Transfer};
 use crate::coupling::closure::Enclosure;
 use glam::DVec3;
 use rayon::prelude::*;
@@ -147,9 +147,8 @@ impl Closure {
             .collect();
         // Row sums of the links, and their targets.
         let ones = vec![[1.0; 3]; leaves];
-        let state = pull_state(tree, &h.leaves, &ones);
         let r0: Vec<f64> = h
-            .push(&gather_with(&h.links, &state))
+            .gather_links(&ones, &mut h.gather_buffers())
             .iter()
             .map(|r| r[0])
             .collect();
@@ -207,9 +206,8 @@ impl Closure {
     /// there is none, so that a scene without them pays nothing in the gather.
     fn overfull_rows_only(h: &Hierarchical) -> Self {
         let ones = vec![[1.0; 3]; h.leaves.len()];
-        let state = pull_state(&h.tree, &h.leaves, &ones);
         let r0: Vec<f64> = h
-            .push(&gather_with(&h.links, &state))
+            .gather_links(&ones, &mut h.gather_buffers())
             .iter()
             .map(|r| r[0])
             .collect();
