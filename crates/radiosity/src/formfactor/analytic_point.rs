@@ -70,9 +70,10 @@ pub fn lambert_vector(x: DVec3, vertices: &[DVec3]) -> DVec3 {
 }
 
 /// The angle in [0, π] whose sine and cosine are proportional to `sine` ≥ 0 and `cosine`:
-/// `sine.atan2(cosine)` for a non-negative sine, to within 1 ulp of π but in a third of the
-/// time of the C library's correctly rounded `atan2` (which took a tenth of the hierarchical
-/// solve of the Cornell box, four calls per point-to-polygon form factor).
+/// `sine.atan2(cosine)` for a non-negative sine, within 2 ulp of it in less than half the
+/// time of the C library's correctly rounded `atan2` (7 against 17 ns measured; `atan2` took
+/// a tenth of the hierarchical solve of the Cornell box, four calls per point-to-polygon form
+/// factor).
 ///
 /// Cephes' `atan` (Moshier 1989): the ratio t = sine/cosine reduced to |t| ≤ tan(π/8) by
 /// atan t = π/2 + atan(−1/t) above tan(3π/8) and π/4 + atan((t − 1)/(t + 1)) above tan(π/8),
@@ -81,9 +82,9 @@ pub fn lambert_vector(x: DVec3, vertices: &[DVec3]) -> DVec3 {
 #[inline]
 fn angle(sine: f64, cosine: f64) -> f64 {
     let run = cosine.abs();
-    let (num, den, base) = if sine > run * 2.414_213_562_373_095 {
+    let (num, den, base) = if sine > run * TAN_3PI_8 {
         (-run, sine, std::f64::consts::FRAC_PI_2)
-    } else if sine > run * 0.414_213_562_373_095_03 {
+    } else if sine > run * TAN_PI_8 {
         (sine - run, sine + run, std::f64::consts::FRAC_PI_4)
     } else {
         (sine, run, 0.0)
@@ -113,7 +114,7 @@ fn angle(sine: f64, cosine: f64) -> f64 {
 /// [`angle`].
 #[inline]
 fn angle_over_sine(sine: f64, cosine: f64) -> f64 {
-    if cosine > 0.0 && sine <= cosine * 0.414_213_562_373_095_03 {
+    if cosine > 0.0 && sine <= cosine * TAN_PI_8 {
         let (u, w) = (sine * sine, cosine * cosine);
         let (w2, w3) = (w * w, w * w * w);
         let (w4, w5) = (w2 * w2, w2 * w3);
@@ -127,6 +128,10 @@ fn angle_over_sine(sine: f64, cosine: f64) -> f64 {
     }
     angle(sine, cosine) / sine
 }
+
+/// tan(π/8) and tan(3π/8), the bounds of [`angle`]'s range reduction.
+const TAN_PI_8: f64 = 0.414_213_562_373_095_03;
+const TAN_3PI_8: f64 = 2.414_213_562_373_095;
 
 /// Moshier's coefficients for [`angle`]: atan t = t + t z P(z)/Q(z), z = t², |t| ≤ tan(π/8).
 const P: [f64; 5] = [
@@ -166,7 +171,7 @@ mod tests {
         let mut pairs: Vec<(f64, f64)> = (0..200_000)
             .map(|_| (next() * 10.0, (next() * 2.0 - 1.0) * 10.0))
             .collect();
-        for t in [0.414_213_562_373_095, 2.414_213_562_373_095, 1.0, 1e-9, 1e9] {
+        for t in [TAN_PI_8, TAN_3PI_8, 1.0, 1e-9, 1e9] {
             for c in [1.0, -1.0] {
                 pairs.push((t, c));
                 pairs.push((t * (1.0 + 1e-15), c));
