@@ -363,9 +363,9 @@ fn a_furnished_room_of_the_scale_benchmark_keeps_its_light() {
     // ask for corrections larger than the links, and then only rows are closed: what escapes
     // is the reciprocity error the links leave. 1.1 % escaped when a floor piece beside a
     // wall could be linked to the whole wall through points that all missed the bright
-    // strip above it; 4.9e-4 now (6.7e-4 with 4 × 4 receiver points out to half a
-    // diameter, 1.3e-3 with 2 × 2 ones in to one diameter; 0.4 % at 100 and 300 objects);
-    // bound 1e-3.
+    // strip above it; 4.2e-4 now (4.9e-4 before links were settled by the quick visibility
+    // pass, 6.7e-4 with 4 × 4 receiver points out to half a diameter, 1.3e-3 with 2 × 2
+    // ones in to one diameter; 0.4 % at 100 and 300 objects); bound 1e-3.
     let scene = radiosity::generate::furnished_room(30, 1);
     let default_tolerance = SolveOptions::default().tolerance;
     let solved = solve(&scene, 2000, SolverKind::Hierarchical, default_tolerance);

@@ -183,6 +183,15 @@ impl Link {
 /// β: surfaces with less than this fraction of the scene's mean irradiance are resolved
 /// to ε of that floor rather than of their own irradiance.
 const DARK_FLOOR: f64 = 0.05;
+/// How far a polygon link's error from the quick visibility pass must be from its tolerance
+/// (above, for a link that can split, or below) for the full pass to be skipped: the quick
+/// pass casts a quarter of the rays. Measured: with 2, the furnished room of 300 objects
+/// casts 29 M rays instead of 55 M at ε = 0.02 (linking 9.4 → 7.0 s) and the Cornell box
+/// 2.0 M instead of 2.6 M, at the same accuracy (Cornell box mean 0.81 %, worst 1.93 →
+/// 1.82 %; the room of 30 objects against a progressive solve, area mean 0.44 %, worst
+/// 1.03 → 0.98 %); 1.5 cast 1.8 M on the Cornell box with the mean error 0.83 %, 3 and 4
+/// 2.2 M and 2.4 M.
+const SETTLE_MARGIN: f64 = 2.0;
 
 /// Bytes per node for memory estimates: the node, its solution state, its link list's
 /// header and source cache slot, four vertices, and, as a leaf, its mesh element with its
@@ -871,7 +880,7 @@ impl Hierarchical {
         refuse_above: Option<&[f64; 3]>,
     ) -> Estimate {
         match self.route(p, q) {
-            Route::PolygonPolygon => self.polygon_polygon(p, q, inherited),
+            Route::PolygonPolygon => self.polygon_polygon(p, q, inherited, refuse_above),
             Route::Sampled(receiver) => self.sampled(p, q, receiver, inherited),
             Route::ClusterPolygon => self.cluster_polygon(p, q, inherited),
             Route::ElementPolygon => self.element_polygon(p, q, inherited),
@@ -901,7 +910,13 @@ impl Hierarchical {
     /// point-to-polygon × visibility) as an affine function over the receiver, fitted (least
     /// squares) to the point values; the error is what the affine fit misses, partial
     /// visibility, and the source's own non-uniformity.
-    fn polygon_polygon(&self, p: u32, q: u32, inherited: Option<&Inherited>) -> Estimate {
+    fn polygon_polygon(
+        &self,
+        p: u32,
+        q: u32,
+        inherited: Option<&Inherited>,
+        refuse_above: Option<&[f64; 3]>,
+    ) -> Estimate {
         let (np, nq) = (&self.tree.nodes[p as usize], &self.tree.nodes[q as usize]);
         let r = np.centre.distance(nq.centre);
         let gap = (r - nq.radius).max(0.0);
@@ -949,28 +964,12 @@ impl Hierarchical {
         // The point kernel to each sub-area, for the visible fractions and the first moment.
         let weights = kernel_weights(&points, np.axis, source);
         let shaft = self.shaft(p, q, inherited);
-        let seen: PointValues = if shaft == Shaft::Clear {
-            smallvec::smallvec![1.0; values.len()]
-        } else {
-            self.visible_fractions(&points, np.axis, source, &weights, &shaft, 0)
-                .iter()
-                .map(|&(v, _)| v)
-                .collect()
-        };
-        let occluded: PointValues = values.iter().zip(&seen).map(|(f, v)| f * v).collect();
-        let v = weighted_mean(&points, &occluded) / unoccluded;
-        let f = open * v;
         // What the fit misses is the larger of the occluded fit's misfit and the unoccluded
         // fit's (scaled to what is seen), which is checked at the corners too: the fit is
         // used over the whole receiver, and at the corners it extrapolates (and a touching
         // source makes the form factor change fastest). Where every point sees all of the
         // source the two fits are one.
         let (gradient, mut misfit) = affine_fit(&points, &values, np.axis);
-        let (gradient_seen, misfit_seen) = if seen.iter().all(|&s| s == 1.0) {
-            (gradient, misfit)
-        } else {
-            affine_fit(&points, &occluded, np.axis)
-        };
         let centre: DVec3 = points.iter().map(|(x, w)| *x * *w).sum();
         for &corner in self.tree.polygon(p) {
             // Just inside the corner, off the source's plane where they touch.
@@ -979,7 +978,52 @@ impl Hierarchical {
             let fitted = unoccluded + gradient.dot(x - centre);
             misfit = misfit.max((exact - fitted).abs());
         }
-        let partial = unoccluded * 2.0 * v.min(1.0 - v);
+        // The link from the visibility `seen` of each point: its transfer and error, with
+        // the share of partial visibility, unoccluded · 2 min(v, 1 − v).
+        let assess = |seen: &[f64]| {
+            let occluded: PointValues = values.iter().zip(seen).map(|(f, v)| f * v).collect();
+            let v = weighted_mean(&points, &occluded) / unoccluded;
+            let misfit_seen = if seen.iter().all(|&s| s == 1.0) {
+                misfit
+            } else {
+                affine_fit(&points, &occluded, np.axis).1
+            };
+            let partial = unoccluded * 2.0 * v.min(1.0 - v);
+            ((misfit * v).max(misfit_seen) + partial, v, occluded)
+        };
+        // Where the quick visibility pass already puts the link's error well over its
+        // tolerance (and the link can split) or well under it, the full pass could not
+        // change the decision: its rays are not cast.
+        let sq = &self.state[q as usize];
+        let settle = refuse_above.map(|threshold| {
+            let splits = self.receiver_splits(p, q) || self.divisible(q);
+            move |quick: &Fractions| {
+                let seen: PointValues = quick.iter().map(|&(v, _)| v).collect();
+                let (delta, v, _) = assess(&seen);
+                let error = |c: usize| delta * sq.b_max[c] + open * v * sq.spread[c];
+                (splits && (0..3).any(|c| error(c) > SETTLE_MARGIN * threshold[c]))
+                    || (0..3).all(|c| error(c) * SETTLE_MARGIN <= threshold[c])
+            }
+        });
+        let seen: PointValues = if shaft == Shaft::Clear {
+            smallvec::smallvec![1.0; values.len()]
+        } else {
+            let pass = match &settle {
+                Some(settle) => QuickPass::Settled(settle),
+                None => QuickPass::Salted(0),
+            };
+            self.visible_fractions(&points, np.axis, source, &weights, &shaft, pass)
+                .iter()
+                .map(|&(v, _)| v)
+                .collect()
+        };
+        let (delta, v, occluded) = assess(&seen);
+        let f = open * v;
+        let gradient_seen = if seen.iter().all(|&s| s == 1.0) {
+            gradient
+        } else {
+            affine_fit(&points, &occluded, np.axis).0
+        };
         let moment = first_moment(&points, &values, source, &weights) * v;
         Estimate {
             transfer: Some(Transfer::Polygon {
@@ -987,7 +1031,7 @@ impl Hierarchical {
                 gradient: (gradient_seen * (open / unoccluded)).as_vec3().to_array(),
                 moment: moment.as_vec3().to_array(),
             }),
-            delta: (misfit * v).max(misfit_seen) + partial,
+            delta,
             mean: f,
             source_dominates: false,
             must_open_p: false,
@@ -1042,8 +1086,8 @@ impl Hierarchical {
     /// source's sub-areas, each weighted by its point kernel cos θ_x cos θ_y ΔA/(π r²)
     /// (after Wallace, Elmquist & Haines 1989; `weights`, from [`kernel_weights`], without
     /// the 1/π), and whether any sub-area faced the point (one that faces none sees all of
-    /// nothing: 1). `salt` varies the quick pass's choice of sub-areas between calls that
-    /// pass one point each; `shaft` what may block the rays.
+    /// nothing: 1). `pass` says how the quick pass aims and when the full one follows;
+    /// `shaft` what may block the rays.
     fn visible_fractions(
         &self,
         points: &[(DVec3, f64)],
@@ -1051,8 +1095,12 @@ impl Hierarchical {
         source: &SourcePolygon,
         weights: &[f64],
         shaft: &Shaft,
-        salt: u64,
-    ) -> SmallVec<[(f64, bool); 16]> {
+        pass: QuickPass<'_>,
+    ) -> Fractions {
+        let (salt, settle) = match pass {
+            QuickPass::Salted(salt) => (salt, None),
+            QuickPass::Settled(settle) => (0, Some(settle)),
+        };
         let count = source.sub_points.len();
         if count == 0 {
             return smallvec::smallvec![(1.0, true); points.len()];
@@ -1071,7 +1119,7 @@ impl Hierarchical {
         let mut answers: SmallVec<[Option<bool>; 256]> =
             smallvec::smallvec![None; points.len() * count];
         let estimate = |stride: usize, answers: &mut [Option<bool>]| {
-            let mut fractions = SmallVec::<[(f64, bool); 16]>::with_capacity(points.len());
+            let mut fractions = Fractions::with_capacity(points.len());
             for (k, &(x, _)) in points.iter().enumerate() {
                 let (mut seen, mut all) = (0.0, 0.0);
                 let aimed = (0..count.div_ceil(stride)).map(|run| {
@@ -1108,7 +1156,7 @@ impl Hierarchical {
         let partial = quick.iter().any(|&(v, faced)| faced && v > 0.0 && v < 1.0)
             || (quick.iter().any(|&(v, faced)| faced && v == 0.0)
                 && quick.iter().any(|&(v, faced)| faced && v == 1.0));
-        if stride > 1 && partial {
+        if stride > 1 && partial && !settle.is_some_and(|settle| settle(&quick)) {
             estimate(1, &mut answers)
         } else {
             quick
@@ -1225,7 +1273,15 @@ impl Hierarchical {
             } else {
                 let point = [(x, 1.0)];
                 let weights = kernel_weights(&point, n, source);
-                self.visible_fractions(&point, n, source, &weights, &shaft, i as u64)[0].0
+                self.visible_fractions(
+                    &point,
+                    n,
+                    source,
+                    &weights,
+                    &shaft,
+                    QuickPass::Salted(i as u64),
+                )[0]
+                .0
             };
             let value = gamma.dot(np.axis) * seen;
             lo = lo.min(value);
@@ -1265,7 +1321,15 @@ impl Hierarchical {
             } else {
                 let point = [(x, 1.0)];
                 let weights = kernel_weights(&point, n, source);
-                self.visible_fractions(&point, n, source, &weights, &shaft, i as u64)[0].0
+                self.visible_fractions(
+                    &point,
+                    n,
+                    source,
+                    &weights,
+                    &shaft,
+                    QuickPass::Salted(i as u64),
+                )[0]
+                .0
             };
             open += f;
             seen += f * v;
@@ -1639,6 +1703,22 @@ impl Hierarchical {
     pub fn node_count(&self) -> usize {
         self.tree.nodes.len()
     }
+}
+
+/// Per receiver point, the visible fraction of a source and whether any of its sub-areas
+/// faced the point ([`Hierarchical::visible_fractions`]).
+type Fractions = SmallVec<[(f64, bool); 16]>;
+
+/// How [`Hierarchical::visible_fractions`] aims its quick pass (one ray per run of
+/// sub-areas from each point) and when the full pass (every pair) follows it.
+#[derive(Clone, Copy)]
+enum QuickPass<'a> {
+    /// Aimed with this salt (which varies the choice between calls that pass one point
+    /// each); the full pass follows wherever the quick one shows a penumbra.
+    Salted(u64),
+    /// Aimed with salt 0; where it shows a penumbra, the full pass follows unless the
+    /// function, given the quick fractions, says they are enough.
+    Settled(&'a dyn Fn(&Fractions) -> bool),
 }
 
 /// Which kind of end a sampled link has.
