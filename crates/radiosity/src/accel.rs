@@ -59,6 +59,19 @@ const PARALLEL_BUILD: usize = 8192;
 /// never culls a true hit.
 const ROBUST_WIDEN: f32 = 2.0 * 3.0 * f32::EPSILON * 0.5 / (1.0 - 3.0 * f32::EPSILON * 0.5);
 
+/// The BVH packet (four triangles) that blocked the latest of a run of shadow rays, tried
+/// first by the next ([`Bvh::occluded_trying`]): the rays between two patches are often
+/// blocked by the same triangles. Not shared between threads.
+#[derive(Debug)]
+pub struct Blocker(std::cell::Cell<u32>);
+
+impl Default for Blocker {
+    /// No packet yet.
+    fn default() -> Self {
+        Blocker(std::cell::Cell::new(u32::MAX))
+    }
+}
+
 /// Where a ray first meets the scene: the answer of [`Bvh::intersect`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Hit {
@@ -217,6 +230,20 @@ impl Bvh {
     /// `dir` need not be normalised; a zero or non-finite `dir` hits nothing. Stops at the first
     /// hit found, which is not necessarily the closest.
     pub fn occluded(&self, origin: Vec3, dir: Vec3, t_min: f32, t_max: f32) -> bool {
+        self.occluded_trying(origin, dir, t_min, t_max, &Blocker::default())
+    }
+
+    /// [`Bvh::occluded`], trying the packet of `blocker` before the traversal and leaving
+    /// in it the packet that blocked this ray, if one did: the same answer, found without a
+    /// traversal where the rays of a run are blocked by the same triangles.
+    pub fn occluded_trying(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        t_min: f32,
+        t_max: f32,
+        blocker: &Blocker,
+    ) -> bool {
         let Some(ray) = Ray::new(origin, dir) else {
             return false;
         };
@@ -225,24 +252,37 @@ impl Bvh {
             return false;
         }
         let range = (Vec4::splat(t_min), Vec4::splat(t_max));
+        if let Some(packet) = self.packets.get(blocker.0.get() as usize) {
+            if ray.hit(packet, range).0 != 0 {
+                return true;
+            }
+        }
         // A stack sized for the tree at hand: zeroing a larger one costs 4 % of the ray's time.
-        if self.depth <= SHALLOW_DEPTH {
+        let hit = if self.depth <= SHALLOW_DEPTH {
             self.occluded_from::<{ 3 * SHALLOW_DEPTH + 1 }>(&ray, range)
         } else {
             self.occluded_from::<STACK>(&ray, range)
+        };
+        if let Some(k) = hit {
+            blocker.0.set(k as u32);
         }
+        hit.is_some()
     }
 
-    /// `occluded` after the checks, with a traversal stack of `N` entries.
-    fn occluded_from<const N: usize>(&self, ray: &Ray, range: (Vec4, Vec4)) -> bool {
+    /// The packet of some triangle the ray hits within `range`, after the checks of
+    /// [`Bvh::occluded_trying`], with a traversal stack of `N` entries.
+    fn occluded_from<const N: usize>(&self, ray: &Ray, range: (Vec4, Vec4)) -> Option<usize> {
         let mut stack = [Child::default(); N];
         let mut top = 0;
         let mut child = self.root;
         loop {
             if child.count() > 0 {
-                let leaf = &self.packets[child.first()..child.first() + child.count()];
-                if leaf.iter().any(|p| ray.hit(p, range).0 != 0) {
-                    return true;
+                let leaf = child.first()..child.first() + child.count();
+                if let Some(k) = leaf
+                    .into_iter()
+                    .find(|&k| ray.hit(&self.packets[k], range).0 != 0)
+                {
+                    return Some(k);
                 }
             } else {
                 let node = &self.nodes[child.first()];
@@ -261,7 +301,7 @@ impl Bvh {
                 }
             }
             if top == 0 {
-                return false;
+                return None;
             }
             top -= 1;
             child = stack[top];
@@ -362,13 +402,39 @@ impl Bvh {
     /// [`Bvh::capsule_visit`]): the same ray–triangle test, without the traversal. When every
     /// triangle that could cross the segment is in `packets`, the answer is the same.
     pub fn segment_occluded_among(&self, packets: &[u32], a: Vec3, b: Vec3, eps: f32) -> bool {
+        self.segment_occluded_among_trying(packets, a, b, eps, &Blocker::default())
+    }
+
+    /// [`Bvh::segment_occluded_among`], trying the packet of `blocker` first and leaving in
+    /// it the packet that blocked this segment, if one did. The same answer when the
+    /// blocker's packet is one of `packets` (or none): with the same rays of one shaft.
+    pub fn segment_occluded_among_trying(
+        &self,
+        packets: &[u32],
+        a: Vec3,
+        b: Vec3,
+        eps: f32,
+        blocker: &Blocker,
+    ) -> bool {
         let Some(ray) = ShearedRay::new(a, b - a) else {
             return false;
         };
         let range = (Vec4::splat(eps), Vec4::splat(1.0 - eps));
-        packets
+        if let Some(packet) = self.packets.get(blocker.0.get() as usize) {
+            if ray.hit(packet, range).0 != 0 {
+                return true;
+            }
+        }
+        match packets
             .iter()
-            .any(|&k| ray.hit(&self.packets[k as usize], range).0 != 0)
+            .find(|&&k| ray.hit(&self.packets[k as usize], range).0 != 0)
+        {
+            Some(&k) => {
+                blocker.0.set(k);
+                true
+            }
+            None => false,
+        }
     }
 
     /// Calls `visit(packet, triangle, vertices)` for every triangle that may lie within
@@ -1168,8 +1234,24 @@ impl Visibility {
     /// (from [`Visibility::shaft_visit`]): the same answer when they hold every triangle that
     /// could cross the segment, without traversing the BVH.
     pub fn visible_among(&self, packets: &[u32], x: DVec3, nx: DVec3, y: DVec3, ny: DVec3) -> bool {
+        self.visible_among_trying(packets, x, nx, y, ny, &Blocker::default())
+    }
+
+    /// [`Visibility::visible_among`], trying the packet of `blocker` first
+    /// ([`Bvh::segment_occluded_among_trying`]).
+    pub fn visible_among_trying(
+        &self,
+        packets: &[u32],
+        x: DVec3,
+        nx: DVec3,
+        y: DVec3,
+        ny: DVec3,
+        blocker: &Blocker,
+    ) -> bool {
         let (a, b) = self.lifted(x, nx, y, ny);
-        !self.bvh.segment_occluded_among(packets, a, b, 1e-5)
+        !self
+            .bvh
+            .segment_occluded_among_trying(packets, a, b, 1e-5, blocker)
     }
 
     /// The ends of a visibility segment from `x` (normal `nx`) to `y` (normal `ny`), each
@@ -1194,8 +1276,23 @@ impl Visibility {
     /// True when nothing blocks the segment from `x` (on a surface with normal `nx`) to `y`
     /// (on a surface with normal `ny`).
     pub fn visible(&self, x: DVec3, nx: DVec3, y: DVec3, ny: DVec3) -> bool {
+        self.visible_trying(x, nx, y, ny, &Blocker::default())
+    }
+
+    /// [`Visibility::visible`], trying the packet of `blocker` before the traversal
+    /// ([`Bvh::occluded_trying`]).
+    pub fn visible_trying(
+        &self,
+        x: DVec3,
+        nx: DVec3,
+        y: DVec3,
+        ny: DVec3,
+        blocker: &Blocker,
+    ) -> bool {
         let (a, b) = self.lifted(x, nx, y, ny);
-        !self.bvh.segment_occluded(a, b, 1e-5)
+        !self
+            .bvh
+            .occluded_trying(a, b - a, 1e-5, 1.0 - 1e-5, blocker)
     }
 
     /// The underlying BVH.
@@ -1614,10 +1711,11 @@ mod tests {
             let deep = bvh.intersect_from::<STACK>(&ray, range);
             assert_eq!(shallow.map(|h| h.t), expected.map(|h| h.t));
             assert_eq!(deep, shallow);
-            let occluded = bvh.occluded_from::<STACK>(&ray, range);
+            let occluded = bvh.occluded_from::<STACK>(&ray, range).is_some();
             assert_eq!(occluded, expected.is_some());
             assert_eq!(
-                bvh.occluded_from::<{ 3 * SHALLOW_DEPTH + 1 }>(&ray, range),
+                bvh.occluded_from::<{ 3 * SHALLOW_DEPTH + 1 }>(&ray, range)
+                    .is_some(),
                 occluded
             );
         }
@@ -1633,6 +1731,41 @@ mod tests {
     fn nodes_are_two_cache_lines() {
         assert_eq!(std::mem::size_of::<Node>(), 128);
         assert_eq!(std::mem::align_of::<Node>(), 64);
+    }
+
+    #[test]
+    fn a_remembered_blocker_changes_no_answer() {
+        // Runs of rays between two small patches across a cloud of triangles, as the rays of
+        // one link are: each run shares one blocker, and every answer must be the brute
+        // force's, through the whole BVH and through a list of packets alike.
+        let mut rng = Rng(0xb10c);
+        let triangles = random_triangles(&mut rng, 2000, 0.08);
+        let bvh = Bvh::build(&triangles);
+        let all: Vec<u32> = (0..bvh.packets.len() as u32).collect();
+        let (mut blocked, mut remembered) = (0, 0);
+        for _ in 0..100 {
+            let (from, to) = (rng.vec3(-0.2, 1.2), rng.vec3(-0.2, 1.2));
+            let (whole, listed) = (Blocker::default(), Blocker::default());
+            for _ in 0..40 {
+                let a = from + rng.vec3(-0.05, 0.05);
+                let b = to + rng.vec3(-0.05, 0.05);
+                let expected = brute_intersect(&triangles, a, b - a, 1e-4, 1.0 - 1e-4).is_some();
+                let before = whole.0.get();
+                let got = bvh.occluded_trying(a, b - a, 1e-4, 1.0 - 1e-4, &whole);
+                assert_eq!(got, expected, "{a} to {b}");
+                let among = bvh.segment_occluded_among_trying(&all, a, b, 1e-4, &listed);
+                assert_eq!(among, expected, "{a} to {b}, listed");
+                blocked += usize::from(expected);
+                // Blocked and the blocker kept: the remembered packet answered.
+                remembered +=
+                    usize::from(expected && before != u32::MAX && whole.0.get() == before);
+            }
+        }
+        // Enough blocked rays, and enough answered by the remembered packet, to mean something.
+        assert!(
+            blocked > 500 && remembered > 100,
+            "{blocked} blocked, {remembered} remembered"
+        );
     }
 
     /// A random capsule about the unit cube: long, short or of zero length, with or without

@@ -1012,10 +1012,17 @@ impl Hierarchical {
                 Some(settle) => QuickPass::Settled(settle),
                 None => QuickPass::Salted(0),
             };
-            self.visible_fractions(&points, np.axis, source, &weights, &shaft, pass)
-                .iter()
-                .map(|&(v, _)| v)
-                .collect()
+            self.visible_fractions(
+                &points,
+                np.axis,
+                source,
+                &weights,
+                &LinkRays::new(&shaft),
+                pass,
+            )
+            .iter()
+            .map(|&(v, _)| v)
+            .collect()
         };
         let (delta, v, occluded) = assess(&seen);
         let f = open * v;
@@ -1094,7 +1101,7 @@ impl Hierarchical {
         n: DVec3,
         source: &SourcePolygon,
         weights: &[f64],
-        shaft: &Shaft,
+        rays: &LinkRays,
         pass: QuickPass<'_>,
     ) -> Fractions {
         let (salt, settle) = match pass {
@@ -1138,7 +1145,7 @@ impl Hierarchical {
                     all += weight;
                     let y = source.sub_points[j];
                     let visible = *answers[k * count + j]
-                        .get_or_insert_with(|| self.visible(shaft, x, n, y, source.normal));
+                        .get_or_insert_with(|| self.visible(rays, x, n, y, source.normal));
                     if visible {
                         seen += weight;
                     }
@@ -1164,12 +1171,15 @@ impl Hierarchical {
     }
 
     /// Whether nothing blocks the segment from `x` (normal `nx`) to `y` (normal `ny`), with
-    /// the blockers that `shaft` allows.
-    fn visible(&self, shaft: &Shaft, x: DVec3, nx: DVec3, y: DVec3, ny: DVec3) -> bool {
-        match shaft {
+    /// the blockers that the link's shaft allows, the last one found tried first.
+    fn visible(&self, rays: &LinkRays, x: DVec3, nx: DVec3, y: DVec3, ny: DVec3) -> bool {
+        let blocker = &rays.blocker;
+        match rays.shaft {
             Shaft::Clear => true,
-            Shaft::Among(packets) => self.visibility.visible_among(packets, x, nx, y, ny),
-            Shaft::Anything => self.visibility.visible(x, nx, y, ny),
+            Shaft::Among(packets) => self
+                .visibility
+                .visible_among_trying(packets, x, nx, y, ny, blocker),
+            Shaft::Anything => self.visibility.visible_trying(x, nx, y, ny, blocker),
         }
     }
 
@@ -1259,6 +1269,7 @@ impl Hierarchical {
     fn cluster_polygon(&self, p: u32, q: u32, inherited: Option<&Inherited>) -> Estimate {
         let np = &self.tree.nodes[p as usize];
         let shaft = self.shaft(p, q, inherited);
+        let rays = LinkRays::new(&shaft);
         let clear = shaft == Shaft::Clear;
         let count = self.options.cluster_samples * if clear { 1 } else { 4 };
         let samples = self.tree.sample_points(p, count);
@@ -1278,7 +1289,7 @@ impl Hierarchical {
                     n,
                     source,
                     &weights,
-                    &shaft,
+                    &rays,
                     QuickPass::Salted(i as u64),
                 )[0]
                 .0
@@ -1308,6 +1319,7 @@ impl Hierarchical {
     /// the element's own, as the constant radiosity over a polygon element is.
     fn element_polygon(&self, p: u32, q: u32, inherited: Option<&Inherited>) -> Estimate {
         let shaft = self.shaft(p, q, inherited);
+        let rays = LinkRays::new(&shaft);
         let samples = self.tree.sample_points(p, self.options.cluster_samples);
         let source = self.source(q);
         let (mut open, mut seen) = (0.0, 0.0);
@@ -1326,7 +1338,7 @@ impl Hierarchical {
                     n,
                     source,
                     &weights,
-                    &shaft,
+                    &rays,
                     QuickPass::Salted(i as u64),
                 )[0]
                 .0
@@ -1354,6 +1366,7 @@ impl Hierarchical {
     fn sampled(&self, p: u32, q: u32, receiver: End, inherited: Option<&Inherited>) -> Estimate {
         let (np, nq) = (&self.tree.nodes[p as usize], &self.tree.nodes[q as usize]);
         let shaft = self.shaft(p, q, inherited);
+        let rays = LinkRays::new(&shaft);
         let clear = shaft == Shaft::Clear;
         let count = self.options.cluster_samples * if clear { 1 } else { 2 };
         let xs = self.tree.sample_points(p, count);
@@ -1371,7 +1384,7 @@ impl Hierarchical {
                     continue;
                 }
                 let u = d / r2.sqrt();
-                let visible = if clear || self.visible(&shaft, x, nx, y, ny) {
+                let visible = if clear || self.visible(&rays, x, nx, y, ny) {
                     1.0
                 } else {
                     0.0
@@ -1702,6 +1715,22 @@ impl Hierarchical {
     /// Counts of nodes and leaves.
     pub fn node_count(&self) -> usize {
         self.tree.nodes.len()
+    }
+}
+
+/// The shadow rays of one link: what may block them, and the packet that blocked the latest
+/// of them, tried first by the next (see [`crate::accel::Blocker`]; the same answers).
+struct LinkRays<'a> {
+    shaft: &'a Shaft,
+    blocker: crate::accel::Blocker,
+}
+
+impl<'a> LinkRays<'a> {
+    fn new(shaft: &'a Shaft) -> Self {
+        LinkRays {
+            shaft,
+            blocker: crate::accel::Blocker::default(),
+        }
     }
 }
 
