@@ -56,6 +56,10 @@ const CONVERGED: f64 = 1e-12;
 /// Conjugate-gradient iteration cap.
 const MAX_ITERATIONS: usize = 200;
 
+/// Fixed receiver ranges of [`row_transpose`]'s parallel scatter (independent of the
+/// thread count, so the sums are too).
+const TRANSPOSE_CHUNKS: usize = 8;
+
 /// The row sum leaf p must have, given the links' sum R_p, in a closed scene: 1, unless
 /// R_p is below 1 − [`MAX_CORRECTION`] (a leaf that sees little but the inside of
 /// something, e.g. floor under a box: its sum is geometry, not link error). Unlike
@@ -477,19 +481,40 @@ fn column_gather_unit(h: &Hierarchical, column: &[f64], area: &[f64]) -> Vec<f64
 
 /// The power the row part of the correction delivers per unit radiosity of each leaf i:
 /// A_i Σ_{l←i} w_l K_{r(l)} / A_{q(l)}, K_r = Σ_{p under r} A_p k_p.
+///
+/// The receivers are taken in [`TRANSPOSE_CHUNKS`] fixed ranges in parallel, each summing
+/// into its own per-source vector, and those are added in order: the same sums whatever the
+/// thread count. (One serial scatter before: 8 % of the furnished room of 1000 objects'
+/// wall time, on one core, in the conjugate gradients' iterations.)
 fn row_transpose(h: &Hierarchical, row: &[f64], area: &[f64]) -> Vec<f64> {
     let ak: Vec<f64> = row.iter().zip(area).map(|(k, a)| k * a).collect();
     let k = up(h, &ak);
-    let mut per_source = vec![0.0; h.tree.nodes.len()];
-    for (r, ls) in h.links.iter().enumerate() {
-        for l in ls {
-            let q = l.source as usize;
-            let aq = h.tree.nodes[q].area;
-            if aq > 0.0 {
-                per_source[q] += weight(l) * k[r] / aq;
+    let nodes = h.tree.nodes.len();
+    let chunk = h.links.len().div_ceil(TRANSPOSE_CHUNKS).max(1);
+    let partial: Vec<Vec<f64>> = h
+        .links
+        .par_chunks(chunk)
+        .enumerate()
+        .map(|(c, receivers)| {
+            let mut per_source = vec![0.0; nodes];
+            for (i, ls) in receivers.iter().enumerate() {
+                let r = c * chunk + i;
+                for l in ls {
+                    let q = l.source as usize;
+                    let aq = h.tree.nodes[q].area;
+                    if aq > 0.0 {
+                        per_source[q] += weight(l) * k[r] / aq;
+                    }
+                }
             }
-        }
-    }
+            per_source
+        })
+        .collect();
+    let per_source: Vec<f64> = (0..nodes)
+        .into_par_iter()
+        .with_min_len(4096)
+        .map(|q| partial.iter().map(|p| p[q]).sum())
+        .collect();
     leaf_values(h, &down(h, per_source))
         .iter()
         .zip(area)
