@@ -1170,6 +1170,21 @@ impl Hierarchical {
         }
     }
 
+    /// The fraction of `source` that the single point `x` (normal `n`) sees
+    /// ([`Hierarchical::visible_fractions`] for one point, its quick pass aimed by `salt`).
+    fn point_visible(
+        &self,
+        x: DVec3,
+        n: DVec3,
+        source: &SourcePolygon,
+        rays: &LinkRays,
+        salt: u64,
+    ) -> f64 {
+        let point = [(x, 1.0)];
+        let weights = kernel_weights(&point, n, source);
+        self.visible_fractions(&point, n, source, &weights, rays, QuickPass::Salted(salt))[0].0
+    }
+
     /// Whether nothing blocks the segment from `x` (normal `nx`) to `y` (normal `ny`), with
     /// the blockers that the link's shaft allows, the last one found tried first.
     fn visible(&self, rays: &LinkRays, x: DVec3, nx: DVec3, y: DVec3, ny: DVec3) -> bool {
@@ -1282,17 +1297,7 @@ impl Hierarchical {
             let seen = if clear {
                 1.0
             } else {
-                let point = [(x, 1.0)];
-                let weights = kernel_weights(&point, n, source);
-                self.visible_fractions(
-                    &point,
-                    n,
-                    source,
-                    &weights,
-                    &rays,
-                    QuickPass::Salted(i as u64),
-                )[0]
-                .0
+                self.point_visible(x, n, source, &rays, i as u64)
             };
             let value = gamma.dot(np.axis) * seen;
             lo = lo.min(value);
@@ -1331,17 +1336,7 @@ impl Hierarchical {
             let v = if shaft == Shaft::Clear {
                 1.0
             } else {
-                let point = [(x, 1.0)];
-                let weights = kernel_weights(&point, n, source);
-                self.visible_fractions(
-                    &point,
-                    n,
-                    source,
-                    &weights,
-                    &rays,
-                    QuickPass::Salted(i as u64),
-                )[0]
-                .0
+                self.point_visible(x, n, source, &rays, i as u64)
             };
             open += f;
             seen += f * v;
