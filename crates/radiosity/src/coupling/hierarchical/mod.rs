@@ -2364,7 +2364,7 @@ mod tests {
     use crate::scene::{Material, MaterialId, Origin, Surface};
 
     /// The hierarchy of `scene` with the default options and no links yet.
-    fn unrefined(scene: &Scene) -> Hierarchical {
+    pub(super) fn unrefined(scene: &Scene) -> Hierarchical {
         Hierarchical::new(
             scene,
             crate::formfactor::FormFactorMethod::Raycast.kernel(),
