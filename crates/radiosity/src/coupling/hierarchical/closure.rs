@@ -286,8 +286,8 @@ impl Closure {
     /// a symmetric positive semi-definite, Laplacian-like matrix whose null space is the
     /// constant vector (k = −c, κ = c changes nothing). Solved by conjugate gradients with
     /// the diagonal W' as preconditioner, b projected onto the range (its total is zero
-    /// when rows and columns have the same total, which they do). [`Stalled`] when the iteration
-    /// stalls ([`STALL_WINDOW`]).
+    /// when rows and columns have the same total, which they do). [`Stalled`] when the
+    /// iteration stalls ([`STALL_WINDOW`]).
     fn solve(h: &Hierarchical, inputs: &BalanceInputs) -> Result<Self, Stalled> {
         let BalanceInputs {
             area,
