@@ -459,10 +459,9 @@ impl Hierarchical {
     fn source(&self, node: u32) -> &SourcePolygon {
         self.sources[node as usize].get_or_init(|| {
             let source = self.kernel.source(self.tree.polygon(node));
-            // The ray-cast kernel is sampled here point by point (its unoccluded value is the
-            // receiver points' sum of exact point-to-polygon factors, `polygon_polygon`), so
-            // its sources' outlines are never read: dropped, 2.2 kB per source polygon.
-            let source = if self.kernel.method() == crate::formfactor::FormFactorMethod::Raycast {
+            // A kernel sampled here never reads its sources' outlines: dropped, 2.2 kB per
+            // source polygon.
+            let source = if self.kernel_sampled_here() {
                 source.points_only()
             } else {
                 source
@@ -471,6 +470,15 @@ impl Hierarchical {
                 .fetch_add(source_heap_bytes(&source), Ordering::Relaxed);
             Box::new(source)
         })
+    }
+
+    /// Whether the kernel's unoccluded value is the receiver points' sum of exact
+    /// point-to-polygon factors that [`Hierarchical::polygon_polygon`] computes itself (the
+    /// ray-cast kernel, `formfactor::raycast`): its [`Kernel::form_factor`] is then never
+    /// called, and its sources need only their sub-areas' centroids and areas
+    /// ([`SourcePolygon::points_only`]).
+    fn kernel_sampled_here(&self) -> bool {
+        self.kernel.method() == crate::formfactor::FormFactorMethod::Raycast
     }
 
     fn divisible(&self, node: u32) -> bool {
@@ -968,7 +976,7 @@ impl Hierarchical {
         // The kernel's value without occlusion, times the visible fraction estimated here.
         // The ray-cast kernel's unoccluded value is this same receiver-point sum of exact
         // point-to-polygon form factors (`formfactor::raycast`), so it is not computed twice.
-        let open = if self.kernel.method() == crate::formfactor::FormFactorMethod::Raycast {
+        let open = if self.kernel_sampled_here() {
             unoccluded
         } else {
             let receiver = Receiver::polygon(polygon.to_vec(), order);
