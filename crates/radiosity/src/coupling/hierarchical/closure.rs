@@ -35,7 +35,7 @@
 //! off is geometry, not link error), and no leaf's irradiance is let below zero.
 
 use super::tree::NONE;
-use super::{Hierarchical, Link, State, Transfer};
+use super::{Hierarchical, Link, Pulled, Transfer};
 use crate::coupling::closure::Enclosure;
 use glam::DVec3;
 use rayon::prelude::*;
@@ -400,7 +400,7 @@ impl Closure {
     pub(super) fn apply(
         &self,
         h: &Hierarchical,
-        state: &[State],
+        state: &[Pulled],
         leaf_b: &[[f64; 3]],
         h_leaf: &mut [[f64; 3]],
     ) {
