@@ -199,12 +199,11 @@ const SETTLE_MARGIN: f64 = 2.0;
 /// iterates). Sources' own points are counted as they are made ([`Hierarchical::bytes`]).
 /// (A flat 400 bytes before: measured peaks were 4 to 8 times the estimate, mostly the
 /// sources' sub-areas, about 2.6 kB per polygon that has been a source.) And the gather's
-/// scratch, kept through the iterations: the pulled state, the first moments and what the
-/// node gathers (uncounted before).
+/// scratch, kept through the iterations: the pulled state and what the node gathers
+/// (uncounted before).
 const NODE_BYTES: u64 = (std::mem::size_of::<tree::Node>()
     + std::mem::size_of::<State>()
     + std::mem::size_of::<Pulled>()
-    + std::mem::size_of::<[DVec3; 3]>()
     + std::mem::size_of::<Gathered>()
     + std::mem::size_of::<Vec<Link>>()
     + std::mem::size_of::<OnceLock<Box<SourcePolygon>>>()
@@ -2237,12 +2236,12 @@ const SHAFT_PACKETS: usize = 16;
 
 /// The pulled state for leaf radiosities `leaf_b` into `buffers.state`: area-weighted mean
 /// radiosity, its gradient over polygon nodes and the vector exitance at every node
-/// (children have larger indices than their parents, so a reverse sweep pulls bottom-up),
-/// with `buffers.first` for the first moments: the gather pulls every iteration, and fresh
-/// vectors each time cost a tenth of the Cornell box's solve in page faults (26 k faults,
-/// 12 k with the buffers kept).
+/// (children have larger indices than their parents, so a reverse sweep pulls bottom-up).
+/// The buffers are kept: the gather pulls every iteration, and fresh vectors each time cost
+/// a tenth of the Cornell box's solve in page faults (26 k faults, 12 k with the buffers
+/// kept).
 fn pull_state_into(tree: &Tree, leaves: &[u32], leaf_b: &[[f64; 3]], buffers: &mut GatherBuffers) {
-    let GatherBuffers { state, first, .. } = buffers;
+    let state = &mut buffers.state;
     state.clear();
     state.resize(tree.nodes.len(), Pulled::default());
     for (e, &node) in leaves.iter().enumerate() {
@@ -2254,9 +2253,9 @@ fn pull_state_into(tree: &Tree, leaves: &[u32], leaf_b: &[[f64; 3]], buffers: &m
             ..Pulled::default()
         };
     }
-    // First moments ∫ B (y − c) dA of polygon nodes, for their gradients.
-    first.clear();
-    first.resize(tree.nodes.len(), [DVec3::ZERO; 3]);
+    // The first moments ∫ B (y − c) dA of polygon nodes, for their gradients, are held in
+    // the gradients' place until every node is pulled (a vector of their own before: 72
+    // bytes per node), then turned into gradients.
     for i in (0..tree.nodes.len()).rev() {
         let n = &tree.nodes[i];
         if n.child_count == 0 {
@@ -2275,29 +2274,34 @@ fn pull_state_into(tree: &Tree, leaves: &[u32], leaf_b: &[[f64; 3]], buffers: &m
             s.b = s.b.map(|x| x / n.area);
         }
         if n.is_polygon() {
-            // ∫ B (y − c) dA = Σ_children [∫_child B (y − c_child) dA + A_child B̄_child (c_child − c)],
-            // and ∇B = S⁻¹ of it in the plane (S the node's second moment of area).
-            let mut t = [DVec3::ZERO; 3];
+            // ∫ B (y − c) dA = Σ_children [∫_child B (y − c_child) dA + A_child B̄_child (c_child − c)].
             for ch in n.children() {
-                let cn = &tree.nodes[ch as usize];
+                let (cn, cs) = (&tree.nodes[ch as usize], &state[ch as usize]);
                 for k in 0..3 {
-                    t[k] += first[ch as usize][k]
-                        + (cn.centre - n.centre) * (cn.area * state[ch as usize].b[k]);
+                    s.gradient[k] += cs.gradient[k] + (cn.centre - n.centre) * (cn.area * cs.b[k]);
                 }
             }
-            let (u, v) = n.axis.any_orthonormal_pair();
-            let [suu, suv, svv] = n.plane_moment;
-            let det = suu * svv - suv * suv;
-            if det > 1e-12 * (suu * svv).max(f64::MIN_POSITIVE) {
-                for k in 0..3 {
-                    let (tu, tv) = (t[k].dot(u), t[k].dot(v));
-                    s.gradient[k] =
-                        u * ((tu * svv - tv * suv) / det) + v * ((tv * suu - tu * suv) / det);
-                }
-            }
-            first[i] = t;
         }
         state[i] = s;
+    }
+    // ∇B = S⁻¹ ∫ B (y − c) dA in the plane (S the node's second moment of area); zero where
+    // S is singular.
+    for (n, s) in tree.nodes.iter().zip(state.iter_mut()) {
+        if !n.is_polygon() || n.child_count == 0 {
+            continue;
+        }
+        let (u, v) = n.axis.any_orthonormal_pair();
+        let [suu, suv, svv] = n.plane_moment;
+        let det = suu * svv - suv * suv;
+        for k in 0..3 {
+            let t = s.gradient[k];
+            s.gradient[k] = if det > 1e-12 * (suu * svv).max(f64::MIN_POSITIVE) {
+                let (tu, tv) = (t.dot(u), t.dot(v));
+                u * ((tu * svv - tv * suv) / det) + v * ((tv * suu - tu * suv) / det)
+            } else {
+                DVec3::ZERO
+            };
+        }
     }
 }
 
@@ -2330,12 +2334,11 @@ fn oracle_state(tree: &Tree, leaves: &[u32], pulled: &[Pulled], state: &mut Vec<
     set_spread(tree, leaves, pulled, state);
 }
 
-/// The scratch vectors of one gather (the pulled state, the first moments, what each node
-/// gathered and then what is pushed down to it), kept between iterations.
+/// The scratch vectors of one gather (the pulled state, what each node gathered and then what
+/// is pushed down to it), kept between iterations.
 #[derive(Default)]
 struct GatherBuffers {
     state: Vec<Pulled>,
-    first: Vec<[DVec3; 3]>,
     gathered: Vec<Gathered>,
 }
 
