@@ -620,7 +620,7 @@ impl Hierarchical {
         let mut link_count = self.link_count();
         while !pending.is_empty() {
             // The round's candidates are decided a chunk at a time, and only the splits are
-            // held until the round ends: a decision is 48 bytes and a kept split 24, against
+            // held until the round ends: a decision is 48 bytes and a kept split 16, against
             // 48 for every candidate of the round at once before. Nothing a decision reads
             // changes within a round (links accepted now are not read by the oracle, and the
             // nodes are subdivided after the last chunk), so the links, the nodes and their
