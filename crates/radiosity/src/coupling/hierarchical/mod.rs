@@ -2813,6 +2813,46 @@ mod tests {
         assert!((mean / area - 1.0).abs() < 1e-4, "{}", mean / area);
     }
 
+    /// The gather keeps one vector per node ([`Gathered::v`]): the irradiance gradient of a
+    /// polygon node, the vector irradiance of a cluster. That holds only while polygon
+    /// transfers go to polygon receivers alone and the transfers into clusters to clusters
+    /// alone: checked on every link of a refined furnished room and of the Cornell box.
+    #[test]
+    fn every_link_feeds_the_vector_its_receiver_keeps() {
+        let scenes = [
+            crate::generate::furnished_room(30, 1),
+            crate::cornell::cornell_box(),
+        ];
+        for (i, scene) in scenes.iter().enumerate() {
+            let h = refined(scene, 0.02);
+            let mut kinds = [0usize; 5];
+            for (p, links) in h.links.iter().enumerate() {
+                let polygon = h.tree.nodes[p].is_polygon();
+                for l in links {
+                    let (k, fits) = match l.transfer {
+                        Transfer::Polygon { .. } => (0, polygon),
+                        Transfer::FromCluster(_) => (1, polygon),
+                        Transfer::ToCluster(_) => (2, !polygon),
+                        Transfer::Tensor(_) => (3, !polygon),
+                        Transfer::Uniform(_) => (4, true),
+                    };
+                    kinds[k] += 1;
+                    assert!(
+                        fits,
+                        "node {p} (polygon: {polygon}) ← {}: {:?}",
+                        l.source, l.transfer
+                    );
+                }
+            }
+            // Not vacuous: the room has both kinds of vector-carrying link (measured: 121,074
+            // polygon links, 857 into clusters, 10,949 uniform).
+            assert!(
+                i > 0 || (kinds[0] > 0 && kinds[2] + kinds[3] > 0),
+                "{kinds:?}"
+            );
+        }
+    }
+
     /// A cluster's sampled transfer from a cluster it interpenetrates ([`Hierarchical::wide`])
     /// stays within the receiver's hemisphere: in a tangle of 3,000 tiny triangles of every
     /// orientation crossing each other in a 1 cm cube, for every pair of clusters whose
