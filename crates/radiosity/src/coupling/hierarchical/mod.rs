@@ -1613,11 +1613,12 @@ impl Hierarchical {
         for i in 0..self.tree.nodes.len() {
             let n = &self.tree.nodes[i];
             let own = gathered[i];
+            let parent = (n.parent != NONE).then(|| &self.tree.nodes[n.parent as usize]);
+            let below_polygon = parent.is_some_and(|parent| parent.is_polygon());
             let mut d = Gathered::default();
-            if n.parent != NONE {
-                let parent = &self.tree.nodes[n.parent as usize];
+            if let Some(parent) = parent {
                 d = gathered[n.parent as usize];
-                if parent.is_polygon() {
+                if below_polygon {
                     // The parent's affine irradiance, evaluated at this node's centroid.
                     let offset = n.centre - parent.centre;
                     for c in 0..3 {
@@ -1628,9 +1629,7 @@ impl Hierarchical {
             for c in 0..3 {
                 d.h[c] += own.h[c];
             }
-            if n.is_polygon()
-                && (n.parent == NONE || !self.tree.nodes[n.parent as usize].is_polygon())
-            {
+            if n.is_polygon() && !below_polygon {
                 // Below a cluster: its vector irradiance, received across this plane, and from
                 // here down the gradient of this polygon's own links.
                 for c in 0..3 {
