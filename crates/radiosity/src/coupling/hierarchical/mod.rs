@@ -217,9 +217,9 @@ const LINK_BYTES: u64 = (std::mem::size_of::<Link>() * 5 / 4) as u64;
 /// Allocator overhead per heap block, bytes (glibc's malloc: 16 on 64-bit targets).
 const BLOCK_BYTES: u64 = 16;
 
-/// Per-node solution state for the oracle (W·m⁻²), from the last solve. (What the gather
-/// reads is [`Pulled`], pulled from the current iterate; each held only what the other needs
-/// as well before, 240 bytes per node twice over, 96 and 168 now.)
+/// Per-node solution state for the oracle (W·m⁻²), from the last solve. What the gather
+/// reads is [`Pulled`], pulled from the current iterate. (One 240-byte state served both
+/// before, held twice over; the two take 96 and 168 bytes per node now.)
 #[derive(Debug, Clone, Copy, Default)]
 struct State {
     /// Area-averaged radiosity.
