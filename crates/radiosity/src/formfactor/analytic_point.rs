@@ -42,6 +42,115 @@ pub fn point_to_polygon(x: DVec3, n: DVec3, vertices: &[DVec3], polygon_normal: 
     }
 }
 
+/// [`point_to_polygon`] at every point of `xs` (one normal `n`), into `out` (as long as
+/// `xs`): the same values to the bit, with the points that need no clipping (the common
+/// case) taken four at a time by [`lambert_vectors`]. A receiver's Gauss points and
+/// corners are evaluated against one source this way.
+pub fn points_to_polygon(
+    xs: &[DVec3],
+    n: DVec3,
+    vertices: &[DVec3],
+    polygon_normal: DVec3,
+    out: &mut [f64],
+) {
+    let mut lanes = [(0, DVec3::ZERO); LANES];
+    let mut filled = 0;
+    let flush = |lanes: &[(usize, DVec3); LANES], filled: usize, out: &mut [f64]| {
+        // Unused lanes repeat the first point; their values are not kept.
+        let xs = std::array::from_fn(|l| lanes[if l < filled { l } else { 0 }].1);
+        let gammas = lambert_vectors(xs, vertices);
+        for (&(i, _), gamma) in lanes.iter().zip(gammas).take(filled) {
+            out[i] = gamma.dot(n).clamp(0.0, 1.0);
+        }
+    };
+    for (i, &x) in xs.iter().enumerate() {
+        let height = (x - vertices[0]).dot(polygon_normal);
+        if height > 0.0 && vertices.iter().all(|v| (*v - x).dot(n) >= 0.0) {
+            lanes[filled] = (i, x);
+            filled += 1;
+            if filled == LANES {
+                flush(&lanes, filled, out);
+                filled = 0;
+            }
+        } else {
+            out[i] = point_to_polygon(x, n, vertices, polygon_normal);
+        }
+    }
+    if filled > 0 {
+        flush(&lanes, filled, out);
+    }
+}
+
+/// Points per call of [`lambert_vectors`].
+const LANES: usize = 4;
+
+/// [`lambert_vector`] from four points at once, to the bit: the same operations in the
+/// same order for each point, laid out lane by lane so that the compiler can pair the
+/// square roots and divisions of two points in one instruction (two thirds of the time of
+/// four scalar calls, measured in the hierarchical solve of the Cornell box).
+#[inline]
+pub fn lambert_vectors(xs: [DVec3; LANES], vertices: &[DVec3]) -> [DVec3; LANES] {
+    let count = vertices.len();
+    let (mut sx, mut sy, mut sz) = ([0.0f64; LANES], [0.0f64; LANES], [0.0f64; LANES]);
+    let (px, py, pz) = (xs.map(|x| x.x), xs.map(|x| x.y), xs.map(|x| x.z));
+    let mut a = vertices[count - 1];
+    for &b in vertices {
+        let (mut cx, mut cy, mut cz) = ([0.0f64; LANES], [0.0f64; LANES], [0.0f64; LANES]);
+        let (mut sine, mut cosine) = ([0.0f64; LANES], [0.0f64; LANES]);
+        let (mut weight, mut near) = ([0.0f64; LANES], [false; LANES]);
+        // Branch-free, lane by lane, so that it vectorises: the edge's cross product, its
+        // sine and cosine, and `angle_over_sine_near` spelt out.
+        for l in 0..LANES {
+            let (ax, ay, az) = (a.x - px[l], a.y - py[l], a.z - pz[l]);
+            let (bx, by, bz) = (b.x - px[l], b.y - py[l], b.z - pz[l]);
+            cx[l] = ay * bz - by * az;
+            cy[l] = az * bx - bz * ax;
+            cz[l] = ax * by - bx * ay;
+            sine[l] = ((cx[l] * cx[l]) + (cy[l] * cy[l]) + (cz[l] * cz[l])).sqrt();
+            cosine[l] = (ax * bx) + (ay * by) + (az * bz);
+            let (u, w) = (sine[l] * sine[l], cosine[l] * cosine[l]);
+            let (w2, w3) = (w * w, w * w * w);
+            let (w4, w5) = (w2 * w2, w2 * w3);
+            let p = (((P[0] * u + P[1] * w) * u + P[2] * w2) * u + P[3] * w3) * u + P[4] * w4;
+            let q = ((((u + Q[0] * w) * u + Q[1] * w2) * u + Q[2] * w3) * u + Q[3] * w4) * u
+                + Q[4] * w5;
+            let den = q * cosine[l];
+            weight[l] = (q + u * p) / den;
+            near[l] = (cosine[l] > 0.0)
+                & (sine[l] <= cosine[l] * TAN_PI_8)
+                & den.is_normal()
+                & w5.is_normal();
+        }
+        // The lanes the one-division form does not suit (a close polygon's edges). (The
+        // same spelt out branch-free for every lane was 4 % slower in the Cornell box.)
+        for l in 0..LANES {
+            if !near[l] && sine[l] > 0.0 {
+                weight[l] = angle(sine[l], cosine[l]) / sine[l];
+            }
+        }
+        for l in 0..LANES {
+            let seen = sine[l] > 0.0;
+            sx[l] = if seen {
+                sx[l] + cx[l] * weight[l]
+            } else {
+                sx[l]
+            };
+            sy[l] = if seen {
+                sy[l] + cy[l] * weight[l]
+            } else {
+                sy[l]
+            };
+            sz[l] = if seen {
+                sz[l] + cz[l] * weight[l]
+            } else {
+                sz[l]
+            };
+        }
+        a = b;
+    }
+    std::array::from_fn(|l| -DVec3::new(sx[l], sy[l], sz[l]) / (2.0 * PI))
+}
+
 /// The contour sum for a polygon already inside the hemisphere above `x`: n · Γ.
 #[inline]
 pub(crate) fn contour_sum(x: DVec3, n: DVec3, vertices: &[DVec3]) -> f64 {
@@ -114,19 +223,25 @@ fn angle(sine: f64, cosine: f64) -> f64 {
 /// [`angle`].
 #[inline]
 fn angle_over_sine(sine: f64, cosine: f64) -> f64 {
-    if cosine > 0.0 && sine <= cosine * TAN_PI_8 {
-        let (u, w) = (sine * sine, cosine * cosine);
-        let (w2, w3) = (w * w, w * w * w);
-        let (w4, w5) = (w2 * w2, w2 * w3);
-        let p = (((P[0] * u + P[1] * w) * u + P[2] * w2) * u + P[3] * w3) * u + P[4] * w4;
-        let q =
-            ((((u + Q[0] * w) * u + Q[1] * w2) * u + Q[2] * w3) * u + Q[3] * w4) * u + Q[4] * w5;
-        let den = q * cosine;
-        if den.is_normal() && w5.is_normal() {
-            return (q + u * p) / den;
-        }
+    match angle_over_sine_near(sine, cosine) {
+        (value, true) => value,
+        _ => angle(sine, cosine) / sine,
     }
-    angle(sine, cosine) / sine
+}
+
+/// The one-division form of [`angle_over_sine`] and whether it applies (false: the value
+/// is meaningless, use [`angle`]). Computed whether or not it applies, without a branch,
+/// so that [`lambert_vectors`] can evaluate it for several edges at once.
+#[inline]
+fn angle_over_sine_near(sine: f64, cosine: f64) -> (f64, bool) {
+    let (u, w) = (sine * sine, cosine * cosine);
+    let (w2, w3) = (w * w, w * w * w);
+    let (w4, w5) = (w2 * w2, w2 * w3);
+    let p = (((P[0] * u + P[1] * w) * u + P[2] * w2) * u + P[3] * w3) * u + P[4] * w4;
+    let q = ((((u + Q[0] * w) * u + Q[1] * w2) * u + Q[2] * w3) * u + Q[3] * w4) * u + Q[4] * w5;
+    let den = q * cosine;
+    let near = cosine > 0.0 && sine <= cosine * TAN_PI_8 && den.is_normal() && w5.is_normal();
+    ((q + u * p) / den, near)
 }
 
 /// tan(π/8) and tan(3π/8), the bounds of [`angle`]'s range reduction.
@@ -267,5 +382,61 @@ mod tests {
         let f = point_to_polygon(DVec3::ZERO, DVec3::Z, &wall, -DVec3::Y);
         let g = point_to_polygon(DVec3::ZERO, DVec3::Z, &upper, -DVec3::Y);
         assert!(f > 0.0 && (f - g).abs() < 1e-15);
+    }
+
+    /// Four points at a time give what one at a time gives, to the bit (`to_bits`, so a
+    /// sign of zero counts too): random points about random triangles, quads and hexagons,
+    /// near (the slow branch of the angle), far, behind, straddling the tangent plane
+    /// (clipped) and on a vertex, in batches of every length from 1 to 17.
+    #[test]
+    fn many_points_at_once_match_one_at_a_time_to_the_bit() {
+        let mut state = 0x2545_f491_4f6c_dd1d_u64;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        let mut checked = [0usize; 2];
+        for trial in 0..600 {
+            let sides = [3, 4, 6][trial % 3];
+            let scale = [0.01, 1.0, 100.0][trial / 3 % 3];
+            // A regular polygon in z = 0 facing +z, counter-clockwise from above.
+            let polygon: Vec<DVec3> = (0..sides)
+                .map(|k| {
+                    let a = k as f64 * std::f64::consts::TAU / sides as f64;
+                    DVec3::new(a.cos(), a.sin(), 0.0) * scale
+                })
+                .collect();
+            let normal = DVec3::new(next(), next(), next()).normalize();
+            let xs: Vec<DVec3> = (0..1 + trial % 17)
+                .map(|k| match k % 5 {
+                    0 => polygon[0],
+                    1 => DVec3::new(next(), next(), next().abs() * 0.05) * scale,
+                    _ => DVec3::new(next(), next(), next()) * scale * 4.0,
+                })
+                .collect();
+            let mut many = vec![f64::NAN; xs.len()];
+            points_to_polygon(&xs, normal, &polygon, DVec3::Z, &mut many);
+            for (&x, got) in xs.iter().zip(&many) {
+                let want = point_to_polygon(x, normal, &polygon, DVec3::Z);
+                assert_eq!(
+                    got.to_bits(),
+                    want.to_bits(),
+                    "{x} to a {sides}-gon: {got} {want}"
+                );
+                checked[usize::from(want > 0.0)] += 1;
+            }
+            let four: [DVec3; 4] = std::array::from_fn(|l| xs[l % xs.len()] + DVec3::Z * scale);
+            for (x, got) in four.iter().zip(lambert_vectors(four, &polygon)) {
+                let want = lambert_vector(*x, &polygon);
+                assert_eq!(
+                    got.to_array().map(f64::to_bits),
+                    want.to_array().map(f64::to_bits)
+                );
+            }
+        }
+        // Both outcomes were exercised (as measured: 1986 points see the polygon, 3384 do not).
+        assert!(checked[0] > 500 && checked[1] > 500, "{checked:?}");
     }
 }

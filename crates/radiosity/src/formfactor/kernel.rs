@@ -15,7 +15,7 @@ use super::analytic_point::point_to_polygon;
 use super::quadrature::element_points;
 use super::FormFactorMethod;
 use crate::accel::Visibility;
-use crate::geometry::{newell, sub_areas, subdivide};
+use crate::geometry::{for_each_piece, newell, sub_areas, subdivide};
 use glam::DVec3;
 
 /// A receiving geometry: a polygon with quadrature points, or a single point.
@@ -149,6 +149,41 @@ impl SourcePolygon {
         }
     }
 
+    /// [`SourcePolygon::new`] followed by [`SourcePolygon::points_only`], without building
+    /// the probes and outlines that it drops: the same centroids and areas, to the bit (the
+    /// lattice cells' corners are the same points, summed in the same order). Building the
+    /// outlines was 3 % of the hierarchical solve of the Cornell box.
+    pub fn points_only_new(vertices: &[DVec3], penumbra: usize, division: Division) -> Self {
+        let (mut sub_points, mut sub_area_sizes) = (Vec::new(), Vec::new());
+        let mut add = |piece: &[DVec3]| {
+            sub_points.push(polygon_centroid(piece));
+            sub_area_sizes.push(newell(piece).1);
+        };
+        match division {
+            Division::Lattice => for_each_piece(vertices, penumbra.max(1), &mut add),
+            Division::SubAreas => sub_areas(vertices, penumbra.max(1))
+                .iter()
+                .for_each(|piece| add(piece)),
+        }
+        let (normal, area) = newell(vertices);
+        let centre = polygon_centroid(vertices);
+        let radius = vertices
+            .iter()
+            .map(|v| v.distance(centre))
+            .fold(0.0, f64::max);
+        Self {
+            vertices: vertices.to_vec(),
+            normal,
+            centre,
+            radius,
+            area,
+            probes: Vec::new(),
+            sub_areas: Vec::new(),
+            sub_points,
+            sub_area_sizes,
+        }
+    }
+
     /// The source without its probes and sub-area outlines, keeping the sub-areas'
     /// centroids and areas (`sub_points`, `sub_area_sizes`): all that a caller sampling the
     /// kernel point by point needs (the hierarchical coupling with the ray-cast kernel), in
@@ -183,6 +218,13 @@ pub trait Kernel: Sync + Send {
 
     /// Prepares a convex source polygon (counter-clockwise seen from its emitting side).
     fn source(&self, vertices: &[DVec3]) -> SourcePolygon;
+
+    /// [`Kernel::source`] as [`SourcePolygon::points_only`] leaves it, for a caller that
+    /// samples the kernel point by point and never calls [`Kernel::form_factor`] with it.
+    /// A kernel may build it without the outlines that are dropped.
+    fn points_only_source(&self, vertices: &[DVec3]) -> SourcePolygon {
+        self.source(vertices).points_only()
+    }
 
     /// The Gauss order per axis at which a receiving polygon of diameter `size` (m) is
     /// integrated; `clearance(limit)` gives its distance (m) to the nearest other surface
@@ -262,5 +304,52 @@ pub fn visible_fraction(
         // tilted by rounding): nothing is seen. (Was 0/0 = NaN, which made the
         // `analytic-point` rows of closed boxes NaN.)
         0.0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The source built without outlines is, to the bit, the full source with its outlines
+    /// dropped: a triangle, a skewed quad and a pentagon (its fan triangles), for both
+    /// divisions and several sub-area counts.
+    #[test]
+    fn a_points_only_source_is_the_full_one_less_its_outlines() {
+        let polygons = [
+            vec![
+                DVec3::new(0.0, 0.0, 0.0),
+                DVec3::new(1.3, 0.1, 0.0),
+                DVec3::new(0.2, 0.9, 0.0),
+            ],
+            vec![
+                DVec3::new(0.0, 0.0, 0.5),
+                DVec3::new(2.0, 0.0, 0.5),
+                DVec3::new(2.2, 0.7, 0.5),
+                DVec3::new(-0.1, 0.6, 0.5),
+            ],
+            (0..5)
+                .map(|k| {
+                    let a = k as f64 * std::f64::consts::TAU / 5.0;
+                    DVec3::new(a.cos(), 0.3, a.sin())
+                })
+                .rev()
+                .collect(),
+        ];
+        for vertices in &polygons {
+            for division in [Division::Lattice, Division::SubAreas] {
+                for penumbra in [1, 3, 4] {
+                    let full = SourcePolygon::new(vertices, 2, penumbra, division).points_only();
+                    let lean = SourcePolygon::points_only_new(vertices, penumbra, division);
+                    assert!(!lean.sub_points.is_empty());
+                    assert_eq!(
+                        full,
+                        lean,
+                        "{} vertices, {division:?}, {penumbra}",
+                        vertices.len()
+                    );
+                }
+            }
+        }
     }
 }

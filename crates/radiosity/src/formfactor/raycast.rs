@@ -71,6 +71,10 @@ impl Kernel for RaycastKernel {
         )
     }
 
+    fn points_only_source(&self, vertices: &[DVec3]) -> SourcePolygon {
+        SourcePolygon::points_only_new(vertices, self.params.penumbra.max(1), Division::Lattice)
+    }
+
     fn receiver_order(&self, size: f64, clearance: &dyn Fn(f64) -> f64) -> usize {
         // Beyond quality × size the order is 1 whatever the distance: search no farther.
         let distance = clearance(self.params.quality * size);

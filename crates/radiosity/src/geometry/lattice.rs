@@ -95,10 +95,34 @@ impl Lattice {
 
     /// Every cell as a polygon.
     pub fn cell_polygons(&self) -> Vec<Vec<DVec3>> {
-        self.cells()
-            .iter()
-            .map(|cell| cell.iter().map(|&(i, j)| self.point(i, j)).collect())
-            .collect()
+        let mut out = Vec::new();
+        self.for_each_cell(&mut |cell| out.push(cell.to_vec()));
+        out
+    }
+
+    /// Calls `visit` with every cell's corners, in the order and orientation of
+    /// [`Lattice::cells`], without allocating.
+    pub fn for_each_cell(&self, visit: &mut dyn FnMut(&[DVec3])) {
+        let p = |i, j| self.point(i, j);
+        match *self {
+            Lattice::Quad { nu, nv, .. } => {
+                for i in 0..nu {
+                    for j in 0..nv {
+                        visit(&[p(i, j), p(i + 1, j), p(i + 1, j + 1), p(i, j + 1)]);
+                    }
+                }
+            }
+            Lattice::Triangle { n, .. } => {
+                for i in 0..n {
+                    for j in 0..n - i {
+                        visit(&[p(i, j), p(i + 1, j), p(i, j + 1)]);
+                        if j + 1 < n - i {
+                            visit(&[p(i + 1, j), p(i + 1, j + 1), p(i, j + 1)]);
+                        }
+                    }
+                }
+            }
+        }
     }
 }
 
@@ -106,6 +130,13 @@ impl Lattice {
 /// triangles, a quad into k × k quads, a larger polygon's fan triangles (from vertex 0) each
 /// into k² triangles.
 pub fn subdivide(vertices: &[DVec3], k: usize) -> Vec<Vec<DVec3>> {
+    let mut out = Vec::new();
+    for_each_piece(vertices, k, &mut |piece| out.push(piece.to_vec()));
+    out
+}
+
+/// Calls `visit` with every piece of [`subdivide`], in its order, without allocating.
+pub fn for_each_piece(vertices: &[DVec3], k: usize, visit: &mut dyn FnMut(&[DVec3])) {
     let k = k.max(1) as u32;
     match vertices.len() {
         4 => Lattice::Quad {
@@ -113,22 +144,21 @@ pub fn subdivide(vertices: &[DVec3], k: usize) -> Vec<Vec<DVec3>> {
             nu: k,
             nv: k,
         }
-        .cell_polygons(),
+        .for_each_cell(visit),
         3 => Lattice::Triangle {
             corners: [vertices[0], vertices[1], vertices[2]],
             n: k,
         }
-        .cell_polygons(),
-        _ => vertices[1..]
-            .windows(2)
-            .flat_map(|w| {
+        .for_each_cell(visit),
+        _ => {
+            for w in vertices[1..].windows(2) {
                 Lattice::Triangle {
                     corners: [vertices[0], w[0], w[1]],
                     n: k,
                 }
-                .cell_polygons()
-            })
-            .collect(),
+                .for_each_cell(visit);
+            }
+        }
     }
 }
 

@@ -15,7 +15,7 @@ pub use clip::{
     clip_convex, clip_to_halfspace, split_convex, ClipOutput, ClipVertex, FixedPolygon,
 };
 pub(crate) use lattice::PlaneFrame;
-pub use lattice::{sub_areas, subdivide, Lattice};
+pub use lattice::{for_each_piece, sub_areas, subdivide, Lattice};
 
 use glam::DVec3;
 

@@ -40,7 +40,7 @@ pub mod tree;
 use crate::accel::Visibility;
 use crate::coupling::closure::Enclosure;
 use crate::coupling::Coupling;
-use crate::formfactor::analytic_point::{lambert_vector, point_to_polygon};
+use crate::formfactor::analytic_point::{lambert_vector, point_to_polygon, points_to_polygon};
 use crate::formfactor::kernel::{polygon_centroid, Kernel, Receiver, SourcePolygon};
 use crate::formfactor::quadrature::element_points;
 use crate::geometry::Polygon;
@@ -475,13 +475,13 @@ impl Hierarchical {
 
     fn source(&self, node: u32) -> &SourcePolygon {
         self.sources[node as usize].get_or_init(|| {
-            let source = self.kernel.source(self.tree.polygon(node));
-            // A kernel sampled here never reads its sources' outlines: dropped, 2.2 kB per
+            // A kernel sampled here never reads its sources' outlines: not kept, 2.2 kB per
             // source polygon.
+            let polygon = self.tree.polygon(node);
             let source = if self.kernel_sampled_here() {
-                source.points_only()
+                self.kernel.points_only_source(polygon)
             } else {
-                source
+                self.kernel.source(polygon)
             };
             self.source_bytes
                 .fetch_add(source_heap_bytes(&source), Ordering::Relaxed);
@@ -990,10 +990,9 @@ impl Hierarchical {
         let mut points = Vec::with_capacity(order * order);
         element_points(polygon, polygon_centroid(polygon), order, &mut points);
         let source = self.source(q);
-        let values: PointValues = points
-            .iter()
-            .map(|&(x, _)| point_to_polygon(x, np.axis, &source.vertices, source.normal))
-            .collect();
+        let xs: SmallVec<[DVec3; 16]> = points.iter().map(|&(x, _)| x).collect();
+        let mut values: PointValues = smallvec::smallvec![0.0; xs.len()];
+        points_to_polygon(&xs, np.axis, &source.vertices, source.normal, &mut values);
         let unoccluded = weighted_mean(&points, &values);
         if unoccluded <= 0.0 {
             return self.unseen(p, q);
@@ -1023,10 +1022,20 @@ impl Hierarchical {
         // source the two fits are one.
         let (gradient, mut misfit) = affine_fit(&points, &values, np.axis);
         let centre: DVec3 = points.iter().map(|(x, w)| *x * *w).sum();
-        for &corner in self.tree.polygon(p) {
-            // Just inside the corner, off the source's plane where they touch.
-            let x = corner + (centre - corner) * 1e-3;
-            let exact = point_to_polygon(x, np.axis, &source.vertices, source.normal);
+        // Just inside the corners, off the source's plane where they touch.
+        let corners: SmallVec<[DVec3; 16]> = polygon
+            .iter()
+            .map(|&corner| corner + (centre - corner) * 1e-3)
+            .collect();
+        let mut exact: PointValues = smallvec::smallvec![0.0; corners.len()];
+        points_to_polygon(
+            &corners,
+            np.axis,
+            &source.vertices,
+            source.normal,
+            &mut exact,
+        );
+        for (&x, exact) in corners.iter().zip(&exact) {
             let fitted = unoccluded + gradient.dot(x - centre);
             misfit = misfit.max((exact - fitted).abs());
         }
