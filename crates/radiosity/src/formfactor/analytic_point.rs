@@ -99,7 +99,7 @@ pub fn lambert_vectors(xs: [DVec3; LANES], vertices: &[DVec3]) -> [DVec3; LANES]
         let (mut sine, mut cosine) = ([0.0f64; LANES], [0.0f64; LANES]);
         let (mut weight, mut near) = ([0.0f64; LANES], [false; LANES]);
         // Branch-free, lane by lane, so that it vectorises: the edge's cross product, its
-        // sine and cosine, and `angle_over_sine_near` spelt out.
+        // sine and cosine, and the one-division form of the angle over the sine.
         for l in 0..LANES {
             let (ax, ay, az) = (a.x - px[l], a.y - py[l], a.z - pz[l]);
             let (bx, by, bz) = (b.x - px[l], b.y - py[l], b.z - pz[l]);
@@ -108,18 +108,7 @@ pub fn lambert_vectors(xs: [DVec3; LANES], vertices: &[DVec3]) -> [DVec3; LANES]
             cz[l] = ax * by - bx * ay;
             sine[l] = ((cx[l] * cx[l]) + (cy[l] * cy[l]) + (cz[l] * cz[l])).sqrt();
             cosine[l] = (ax * bx) + (ay * by) + (az * bz);
-            let (u, w) = (sine[l] * sine[l], cosine[l] * cosine[l]);
-            let (w2, w3) = (w * w, w * w * w);
-            let (w4, w5) = (w2 * w2, w2 * w3);
-            let p = (((P[0] * u + P[1] * w) * u + P[2] * w2) * u + P[3] * w3) * u + P[4] * w4;
-            let q = ((((u + Q[0] * w) * u + Q[1] * w2) * u + Q[2] * w3) * u + Q[3] * w4) * u
-                + Q[4] * w5;
-            let den = q * cosine[l];
-            weight[l] = (q + u * p) / den;
-            near[l] = (cosine[l] > 0.0)
-                & (sine[l] <= cosine[l] * TAN_PI_8)
-                & den.is_normal()
-                & w5.is_normal();
+            (weight[l], near[l]) = angle_over_sine_near(sine[l], cosine[l]);
         }
         // The lanes the one-division form does not suit (a close polygon's edges). (The
         // same spelt out branch-free for every lane was 4 % slower in the Cornell box.)
@@ -230,9 +219,9 @@ fn angle_over_sine(sine: f64, cosine: f64) -> f64 {
 }
 
 /// The one-division form of [`angle_over_sine`] and whether it applies (false: the value
-/// is meaningless, use [`angle`]). Computed whether or not it applies, without a branch,
-/// so that [`lambert_vectors`] can evaluate it for several edges at once.
-#[inline]
+/// is meaningless, use [`angle`]). Computed whether or not it applies, without a branch
+/// (`&`, not `&&`), so that [`lambert_vectors`] evaluates it for two edges at once.
+#[inline(always)]
 fn angle_over_sine_near(sine: f64, cosine: f64) -> (f64, bool) {
     let (u, w) = (sine * sine, cosine * cosine);
     let (w2, w3) = (w * w, w * w * w);
@@ -240,7 +229,7 @@ fn angle_over_sine_near(sine: f64, cosine: f64) -> (f64, bool) {
     let p = (((P[0] * u + P[1] * w) * u + P[2] * w2) * u + P[3] * w3) * u + P[4] * w4;
     let q = ((((u + Q[0] * w) * u + Q[1] * w2) * u + Q[2] * w3) * u + Q[3] * w4) * u + Q[4] * w5;
     let den = q * cosine;
-    let near = cosine > 0.0 && sine <= cosine * TAN_PI_8 && den.is_normal() && w5.is_normal();
+    let near = (cosine > 0.0) & (sine <= cosine * TAN_PI_8) & den.is_normal() & w5.is_normal();
     ((q + u * p) / den, near)
 }
 
