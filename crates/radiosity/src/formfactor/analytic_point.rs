@@ -86,8 +86,9 @@ const LANES: usize = 4;
 
 /// [`lambert_vector`] from four points at once, to the bit: the same operations in the
 /// same order for each point, laid out lane by lane so that the compiler can pair the
-/// square roots and divisions of two points in one instruction (two thirds of the time of
-/// four scalar calls, measured in the hierarchical solve of the Cornell box).
+/// square roots and divisions of two points in one instruction. (Measured with `perf` in
+/// the hierarchical solve of the Cornell box: the point-to-polygon form factors took 25 %
+/// of its CPU one point at a time, 19 % now of a total 7 % smaller.)
 #[inline]
 pub fn lambert_vectors(xs: [DVec3; LANES], vertices: &[DVec3]) -> [DVec3; LANES] {
     let count = vertices.len();

@@ -130,6 +130,20 @@ impl SourcePolygon {
         let sub_areas = divide(penumbra);
         let sub_points = sub_areas.iter().map(|p| polygon_centroid(p)).collect();
         let sub_area_sizes = sub_areas.iter().map(|p| newell(p).1).collect();
+        Self {
+            probes,
+            sub_areas,
+            ..Self::from_sub_points(vertices, sub_points, sub_area_sizes)
+        }
+    }
+
+    /// The source over `vertices` with the given sub-area centroids and areas, and no
+    /// probes or outlines.
+    fn from_sub_points(
+        vertices: &[DVec3],
+        sub_points: Vec<DVec3>,
+        sub_area_sizes: Vec<f64>,
+    ) -> Self {
         let (normal, area) = newell(vertices);
         let centre = polygon_centroid(vertices);
         let radius = vertices
@@ -142,8 +156,8 @@ impl SourcePolygon {
             centre,
             radius,
             area,
-            probes,
-            sub_areas,
+            probes: Vec::new(),
+            sub_areas: Vec::new(),
             sub_points,
             sub_area_sizes,
         }
@@ -165,23 +179,7 @@ impl SourcePolygon {
                 .iter()
                 .for_each(|piece| add(piece)),
         }
-        let (normal, area) = newell(vertices);
-        let centre = polygon_centroid(vertices);
-        let radius = vertices
-            .iter()
-            .map(|v| v.distance(centre))
-            .fold(0.0, f64::max);
-        Self {
-            vertices: vertices.to_vec(),
-            normal,
-            centre,
-            radius,
-            area,
-            probes: Vec::new(),
-            sub_areas: Vec::new(),
-            sub_points,
-            sub_area_sizes,
-        }
+        Self::from_sub_points(vertices, sub_points, sub_area_sizes)
     }
 
     /// The source without its probes and sub-area outlines, keeping the sub-areas'
