@@ -398,4 +398,37 @@ mod tests {
             assert_eq!(q1.point(i, 0), q2.point(5 - i, 0));
         }
     }
+
+    /// The cells visited one by one are the cells of [`Lattice::cells`], corner for corner
+    /// and in the same order (the meshing walks `cells`, the sources `for_each_cell`).
+    #[test]
+    fn visited_cells_are_the_listed_cells() {
+        let lattices = [
+            Lattice::Quad {
+                corners: [
+                    DVec3::ZERO,
+                    DVec3::new(2.0, 0.1, 0.0),
+                    DVec3::new(2.2, 1.3, 0.2),
+                    DVec3::new(-0.1, 1.0, 0.0),
+                ],
+                nu: 3,
+                nv: 2,
+            },
+            Lattice::Triangle {
+                corners: [DVec3::ZERO, DVec3::X, DVec3::new(0.3, 0.8, 0.1)],
+                n: 4,
+            },
+        ];
+        for lattice in lattices {
+            let listed: Vec<Vec<DVec3>> = lattice
+                .cells()
+                .iter()
+                .map(|cell| cell.iter().map(|&(i, j)| lattice.point(i, j)).collect())
+                .collect();
+            let mut visited = Vec::new();
+            lattice.for_each_cell(&mut |cell| visited.push(cell.to_vec()));
+            assert_eq!(visited, listed);
+            assert_eq!(lattice.cell_polygons(), listed);
+        }
+    }
 }
