@@ -636,13 +636,13 @@ fn columns(h: &Hierarchical) -> Vec<f64> {
                     slope[q] += DVec3::from_array(moment.map(f64::from)) * a;
                 }
                 Transfer::Uniform(f) => mean[q] += a * f64::from(f),
-                Transfer::FromCluster(g) => {
+                Transfer::FromCluster(g, _) => {
                     vector[q] += DVec3::from_array(g.map(f64::from)) * a;
                 }
-                Transfer::ToCluster(g) => {
+                Transfer::ToCluster(g, _) => {
                     mean[q] += DVec3::from_array(g.map(f64::from)).dot(node.vector_area);
                 }
-                Transfer::Tensor(t) => {
+                Transfer::Tensor(t, _) => {
                     let t = t.map(f64::from);
                     let v = node.vector_area;
                     vector[q] += DVec3::new(

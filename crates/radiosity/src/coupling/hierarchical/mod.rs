@@ -130,12 +130,14 @@ pub enum Transfer {
         /// The kernel's first moment over the source, m.
         moment: [f32; 3],
     },
-    /// Polygon ← oriented cluster: H_p += g · M_q.
-    FromCluster([f32; 3]),
-    /// Oriented cluster ← polygon: e_p += B̄_q · g.
-    ToCluster([f32; 3]),
-    /// Oriented cluster ← oriented cluster: e_p += T · M_q (T symmetric: xx, yy, zz, xy, xz, yz).
-    Tensor([f32; 6]),
+    /// Polygon ← oriented cluster: H_p += g · M_q; with the link's mean transfer f̄ (see
+    /// [`Link::mean`]).
+    FromCluster([f32; 3], f32),
+    /// Oriented cluster ← polygon: e_p += B̄_q · g; with f̄.
+    ToCluster([f32; 3], f32),
+    /// Oriented cluster ← oriented cluster: e_p += T · M_q (T symmetric: xx, yy, zz, xy, xz, yz);
+    /// with f̄.
+    Tensor([f32; 6], f32),
     /// Either end a wide cluster: H_p += c · B̄_q, spread uniformly.
     Uniform(f32),
 }
@@ -149,8 +151,8 @@ impl Transfer {
                 gradient,
                 moment,
             } => f == 0.0 && gradient == [0.0; 3] && moment == [0.0; 3],
-            Transfer::FromCluster(g) | Transfer::ToCluster(g) => g == [0.0; 3],
-            Transfer::Tensor(t) => t == [0.0; 6],
+            Transfer::FromCluster(g, _) | Transfer::ToCluster(g, _) => g == [0.0; 3],
+            Transfer::Tensor(t, _) => t == [0.0; 6],
             Transfer::Uniform(c) => c == 0.0,
         }
     }
@@ -167,16 +169,25 @@ pub struct Link {
     /// the transfer over the receiver's and the source's sample points, with partial
     /// visibility.
     pub delta: f32,
-    /// The mean transfer f̄ (irradiance per unit source radiosity), for the error of treating
-    /// a non-uniform source as uniform: f̄ · (B_q^max − B̄_q).
-    pub mean: f32,
 }
 
 impl Link {
+    /// The mean transfer f̄ (irradiance per unit source radiosity), for the error of treating
+    /// a non-uniform source as uniform: f̄ · (B_q^max − B̄_q). A polygon or uniform transfer's
+    /// own mean; the cluster transfers carry theirs. (A field of every link before: 44 bytes
+    /// a link, 40 now.)
+    pub fn mean(&self) -> f32 {
+        match self.transfer {
+            Transfer::Polygon { f, .. } => f,
+            Transfer::Uniform(c) => c,
+            Transfer::FromCluster(_, m) | Transfer::ToCluster(_, m) | Transfer::Tensor(_, m) => m,
+        }
+    }
+
     /// The link's irradiance error in channel `c` (W·m⁻²) with the source's state `s`:
     /// δ · B_q^max + f̄ · (B_q^max − B̄_q).
     fn error(&self, s: &State, c: usize) -> f64 {
-        f64::from(self.delta) * s.b_max[c] + f64::from(self.mean) * s.spread[c]
+        f64::from(self.delta) * s.b_max[c] + f64::from(self.mean()) * s.spread[c]
     }
 }
 
@@ -214,6 +225,9 @@ const NODE_BYTES: u64 = (std::mem::size_of::<tree::Node>()
 /// Bytes per link, with a quarter more for the vectors' spare capacity (they grow by at most a
 /// quarter: [`push_link`]).
 const LINK_BYTES: u64 = (std::mem::size_of::<Link>() * 5 / 4) as u64;
+// A link is ten 4-byte words: its source, its error coefficient and its transfer (the
+// largest, a polygon's, seven numbers and the kind).
+const _: () = assert!(std::mem::size_of::<Link>() == 40);
 /// Allocator overhead per heap block, bytes (glibc's malloc: 16 on 64-bit targets).
 const BLOCK_BYTES: u64 = 16;
 
@@ -781,7 +795,6 @@ impl Hierarchical {
                     source: q,
                     transfer,
                     delta: estimate.delta as f32,
-                    mean: estimate.mean as f32,
                 };
                 // Whether the link as stored (its error in f32) misses the threshold.
                 let forced = !self.within(&link, &threshold);
@@ -1373,7 +1386,10 @@ impl Hierarchical {
             g += gamma * (seen * weight);
         }
         Estimate {
-            transfer: Some(Transfer::ToCluster(g.as_vec3().to_array())),
+            transfer: Some(Transfer::ToCluster(
+                g.as_vec3().to_array(),
+                g.dot(np.axis).abs() as f32,
+            )),
             delta: (hi - lo).max(0.0),
             mean: g.dot(np.axis).abs(),
             source_dominates: false,
@@ -1479,16 +1495,16 @@ impl Hierarchical {
                 }
             }
         }
-        let transfer = match receiver {
-            End::Polygon => Transfer::FromCluster(vector.as_vec3().to_array()),
-            End::Oriented => Transfer::Tensor(tensor.map(|t| t as f32)),
-        };
         // The error per unit source radiosity: the spread of the pair values, in units of
         // irradiance per unit radiosity (a form factor); plus the source's own
         // non-uniformity (a cluster holding a lamp among dark surfaces emits from the lamp,
         // not from where its area is), which opens the source.
         let spread = if lo.is_finite() { hi - lo } else { 0.0 };
         let mean_value = if lo.is_finite() { 0.5 * (hi + lo) } else { 0.0 };
+        let transfer = match receiver {
+            End::Polygon => Transfer::FromCluster(vector.as_vec3().to_array(), mean_value as f32),
+            End::Oriented => Transfer::Tensor(tensor.map(|t| t as f32), mean_value as f32),
+        };
         Estimate {
             transfer: Some(transfer),
             delta: spread,
@@ -1766,9 +1782,9 @@ impl Hierarchical {
         for l in self.links.iter().flatten() {
             k[match l.transfer {
                 Transfer::Polygon { .. } => 0,
-                Transfer::FromCluster(_) => 1,
-                Transfer::ToCluster(_) => 2,
-                Transfer::Tensor(_) => 3,
+                Transfer::FromCluster(..) => 1,
+                Transfer::ToCluster(..) => 2,
+                Transfer::Tensor(..) => 3,
                 Transfer::Uniform(_) => 4,
             }] += 1;
         }
@@ -1861,7 +1877,7 @@ impl Route {
         Estimate {
             transfer: Some(link.transfer),
             delta: f64::from(link.delta),
-            mean: f64::from(link.mean),
+            mean: f64::from(link.mean()),
             ..Estimate::refused(open_p, open_q)
         }
     }
@@ -2417,19 +2433,19 @@ fn gather_into(links: &[Vec<Link>], state: &[Pulled], gathered: &mut Vec<Gathere
                             out.h[c] += f as f64 * s.b[c];
                         }
                     }
-                    Transfer::FromCluster(g) => {
+                    Transfer::FromCluster(g, _) => {
                         let g = DVec3::from_array(g.map(f64::from));
                         for c in 0..3 {
                             out.h[c] += g.dot(s.m[c]);
                         }
                     }
-                    Transfer::ToCluster(g) => {
+                    Transfer::ToCluster(g, _) => {
                         let g = DVec3::from_array(g.map(f64::from));
                         for c in 0..3 {
                             out.v[c] += g * s.b[c];
                         }
                     }
-                    Transfer::Tensor(t) => {
+                    Transfer::Tensor(t, _) => {
                         let t = t.map(f64::from);
                         for c in 0..3 {
                             let m = s.m[c];
@@ -2854,9 +2870,9 @@ mod tests {
                 for l in links {
                     let (k, fits) = match l.transfer {
                         Transfer::Polygon { .. } => (0, polygon),
-                        Transfer::FromCluster(_) => (1, polygon),
-                        Transfer::ToCluster(_) => (2, !polygon),
-                        Transfer::Tensor(_) => (3, !polygon),
+                        Transfer::FromCluster(..) => (1, polygon),
+                        Transfer::ToCluster(..) => (2, !polygon),
+                        Transfer::Tensor(..) => (3, !polygon),
                         Transfer::Uniform(_) => (4, true),
                     };
                     kinds[k] += 1;
