@@ -258,20 +258,7 @@ impl Bvh {
         t_max: f32,
         blocker: &Blocker,
     ) -> bool {
-        let Some(ray) = Ray::new(origin, dir) else {
-            return false;
-        };
-        let nonempty_range = t_min < t_max; // false when either is NaN
-        if self.is_empty() || !nonempty_range || ray.enter(&self.bounds, t_min, t_max).is_none() {
-            return false;
-        }
-        let range = (Vec4::splat(t_min), Vec4::splat(t_max));
-        if let Some(packet) = self.packets.get(blocker.0.get() as usize) {
-            if ray.hit(packet, range).0 != 0 {
-                return true;
-            }
-        }
-        self.occluded_below(&ray, range, &[self.root], blocker)
+        self.occluded_from_roots(&[self.root], origin, dir, t_min, t_max, blocker)
     }
 
     /// [`Bvh::occluded_trying`] for a ray inside the capsule that `subtrees` were listed for
@@ -285,11 +272,26 @@ impl Bvh {
         t_max: f32,
         blocker: &Blocker,
     ) -> bool {
+        self.occluded_from_roots(&subtrees.0, origin, dir, t_min, t_max, blocker)
+    }
+
+    /// [`Bvh::occluded_trying`] below `roots` (the root, or subtrees holding every triangle
+    /// the ray can meet).
+    fn occluded_from_roots(
+        &self,
+        roots: &[Child],
+        origin: Vec3,
+        dir: Vec3,
+        t_min: f32,
+        t_max: f32,
+        blocker: &Blocker,
+    ) -> bool {
         let Some(ray) = Ray::new(origin, dir) else {
             return false;
         };
         let nonempty_range = t_min < t_max; // false when either is NaN
-        if subtrees.0.is_empty()
+        if self.is_empty()
+            || roots.is_empty()
             || !nonempty_range
             || ray.enter(&self.bounds, t_min, t_max).is_none()
         {
@@ -301,7 +303,7 @@ impl Bvh {
                 return true;
             }
         }
-        self.occluded_below(&ray, range, &subtrees.0, blocker)
+        self.occluded_below(&ray, range, roots, blocker)
     }
 
     /// Whether the ray hits a triangle below `roots` (at most [`MOST_SUBTREES`]) within
@@ -1376,7 +1378,7 @@ impl Visibility {
         visit: &mut dyn FnMut(u32, usize, &[Vec3; 3]) -> bool,
     ) -> bool {
         let (a, b) = (a.as_vec3(), b.as_vec3());
-        let radius = (radius * (1.0 + 1e-6) + self.offset) as f32;
+        let radius = self.capsule_radius(radius);
         let visit = &mut |k, t: u32, tri: &[Vec3; 3]| {
             visit(k, self.triangle_polygon[t as usize] as usize, tri)
         };
@@ -1410,6 +1412,13 @@ impl Visibility {
         !self
             .bvh
             .segment_occluded_among_trying(packets, a, b, 1e-5, blocker)
+    }
+
+    /// The radius of the capsule that holds every segment between points within `radius`
+    /// (m) of its axis' ends once they are lifted by the ray offset, with a margin for
+    /// rounding.
+    fn capsule_radius(&self, radius: f64) -> f32 {
+        (radius * (1.0 + 1e-6) + self.offset) as f32
     }
 
     /// The ends of a visibility segment from `x` (normal `nx`) to `y` (normal `ny`), each
@@ -1464,7 +1473,7 @@ impl Visibility {
         clip: Option<[Vec3; 2]>,
         most: usize,
     ) -> Subtrees {
-        let radius = (radius * (1.0 + 1e-6) + self.offset) as f32;
+        let radius = self.capsule_radius(radius);
         self.bvh
             .capsule_subtrees(a.as_vec3(), b.as_vec3(), radius, clip, most)
     }
