@@ -84,7 +84,12 @@ pub fn solve(
             progress.message(&format!("{label}, {links} links kept"));
         });
         progress.finish();
-        b = h.remesh(scene);
+        // The final mesh is balanced in full; the others only guide the next refinement.
+        b = if stage == 0 {
+            h.remesh(scene)
+        } else {
+            h.remesh_for_refining(scene)
+        };
         // Intermediate stages only need radiosities good enough for the next refinement.
         let stage_options = SolveOptions {
             tolerance: if stage == 0 {

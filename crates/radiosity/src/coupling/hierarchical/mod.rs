@@ -46,6 +46,7 @@ use crate::formfactor::quadrature::element_points;
 use crate::geometry::Polygon;
 use crate::mesh::{Element, Mesh, Patch, PatchId, SurfaceData};
 use crate::scene::Scene;
+use closure::Balance;
 use glam::DVec3;
 use rayon::prelude::*;
 use smallvec::SmallVec;
@@ -223,7 +224,7 @@ const NODE_BYTES: u64 = (std::mem::size_of::<tree::Node>()
     + 4 * std::mem::size_of::<DVec3>()
     + 6 * std::mem::size_of::<[f64; 3]>()) as u64;
 /// Bytes per link, with a quarter more for the vectors' spare capacity (they grow by at most a
-/// quarter: [`push_link`]).
+/// quarter: [`extend_links`]).
 const LINK_BYTES: u64 = (std::mem::size_of::<Link>() * 5 / 4) as u64;
 // A link is ten 4-byte words: its source, its error coefficient and its transfer (the
 // largest, a polygon's, seven numbers and the kind).
@@ -254,11 +255,24 @@ struct State {
 struct Pulled {
     /// Area-averaged radiosity.
     b: [f64; 3],
-    /// Least-squares gradient of the radiosity over a polygon node's leaves, per channel
-    /// (W·m⁻³; zero for leaves and clusters).
-    gradient: [DVec3; 3],
-    /// Vector exitance Σ B_i A_i n_i per channel.
-    m: [DVec3; 3],
+    /// Per channel: at a polygon node the least-squares gradient of the radiosity over its
+    /// leaves (W·m⁻³; zero at a leaf), at a cluster its vector exitance M = Σ B_i A_i n_i
+    /// (W). One vector serves both, as in [`Gathered`]: polygon transfers read their
+    /// polygon sources' gradients and the cluster transfers their cluster sources'
+    /// exitance, and a polygon's exitance is B̄ A n. (Two vectors before: 168 bytes per node,
+    /// 96 now, and the gather's pull, which runs on one thread, moves that much less.)
+    v: [DVec3; 3],
+}
+
+impl Pulled {
+    /// The vector exitance Σ B_i A_i n_i of node `n` whose pulled state this is.
+    fn exitance(&self, n: &tree::Node) -> [DVec3; 3] {
+        if n.is_polygon() {
+            self.b.map(|b| n.vector_area * b)
+        } else {
+            self.v
+        }
+    }
 }
 
 /// The hierarchical coupling: the hierarchy, its links and the leaf mesh.
@@ -428,9 +442,9 @@ impl Hierarchical {
             tree,
         };
         h.grow();
-        h.rebuild_mesh(&objects, scene);
+        h.rebuild_mesh(&objects, scene, Balance::Joint);
         h.enclosure = Enclosure::probe(&h.mesh, &h.visibility);
-        h.closure = closure::Closure::new(&h, h.enclosure);
+        h.closure = closure::Closure::new(&h, h.enclosure, Balance::Joint);
         // Light sources (point, spot, goniometric) count as emitted power: their first shot
         // is part of the leaves' source term (see `rebuild_mesh`).
         for c in 0..3 {
@@ -655,17 +669,28 @@ impl Hierarchical {
                         self.decide(*p, *q, kept, inherited.as_ref(), tolerance, at_cap)
                     })
                     .collect();
+                // The candidates come receiver by receiver: each receiver's accepted links go
+                // in with one reservation (one per link before, a tenth of the work between
+                // the rounds in reallocations).
+                let mut run: SmallVec<[Link; 16]> = SmallVec::new();
+                let mut run_receiver = NONE;
                 for (i, d) in decisions.into_iter().enumerate() {
                     match d {
                         Decision::Drop => {}
                         Decision::Accept(link, missed) => {
                             forced += usize::from(missed);
                             link_count += 1;
-                            push_link(&mut self.links[chunk[i].0 as usize], link);
+                            let p = chunk[i].0;
+                            if p != run_receiver {
+                                extend_links(&mut self.links, run_receiver, &mut run);
+                                run_receiver = p;
+                            }
+                            run.push(link);
                         }
                         Decision::Split(n, shaft) => splits.push(((start + i) as u32, n, shaft)),
                     }
                 }
+                extend_links(&mut self.links, run_receiver, &mut run);
                 report(chunk.len(), link_count);
             }
             kept = Vec::new();
@@ -709,12 +734,15 @@ impl Hierarchical {
             }
             // Children inherit their parent's radiosity until the next solve.
             self.inherit_state(leaves_before);
-            next.sort_unstable_by_key(|c| (c.0, c.1));
+            next.par_sort_unstable_by_key(|c| (c.0, c.1));
             pending = next;
         }
-        for l in &mut self.links {
-            l.sort_by_key(|l| l.source);
-        }
+        // Node by node, in parallel (a tenth of the single-threaded work between the rounds
+        // of the furnished room of 1000 objects).
+        self.links
+            .par_iter_mut()
+            .with_min_len(256)
+            .for_each(|l| l.sort_by_key(|l| l.source));
         self.forced = forced;
         self.form_factor_seconds += started.elapsed().as_secs_f64();
         self.tree.nodes.len() != leaves_before
@@ -1700,7 +1728,7 @@ impl Hierarchical {
     /// Rebuilds the leaf mesh: every input polygon's leaves in scene order, one patch per
     /// input polygon, vertices welded per polygon (children share their parents' exact edge
     /// midpoints), with the light sources' direct irradiance on every leaf.
-    fn rebuild_mesh(&mut self, objects: &[String], scene: &Scene) {
+    fn rebuild_mesh(&mut self, objects: &[String], scene: &Scene, balance: Balance) {
         let mut mesh = Mesh {
             objects: objects.to_vec(),
             ..Mesh::default()
@@ -1759,14 +1787,25 @@ impl Hierarchical {
         crate::direct::illuminate_with(&mut mesh, &scene.lights, &self.visibility);
         self.mesh = mesh;
         self.leaves = leaves;
-        self.closure = closure::Closure::new(self, self.enclosure);
+        self.closure = closure::Closure::new(self, self.enclosure, balance);
     }
 
     /// After [`Hierarchical::refine`]: the leaf mesh of the refined hierarchy and, for each of
     /// its elements, the radiosity to start from (the old leaf's or its ancestor's value).
+    /// A closed scene's rows and columns are closed together ([`closure`]).
     pub fn remesh(&mut self, scene: &Scene) -> Vec<[f64; 3]> {
+        self.remesh_balancing(scene, Balance::Joint)
+    }
+
+    /// [`Hierarchical::remesh`] for a mesh whose solution only guides the next refinement:
+    /// a closed scene's rows alone are closed ([`closure::Balance::Rows`]).
+    pub fn remesh_for_refining(&mut self, scene: &Scene) -> Vec<[f64; 3]> {
+        self.remesh_balancing(scene, Balance::Rows)
+    }
+
+    fn remesh_balancing(&mut self, scene: &Scene, balance: Balance) -> Vec<[f64; 3]> {
         let objects = self.mesh.objects.clone();
-        self.rebuild_mesh(&objects, scene);
+        self.rebuild_mesh(&objects, scene, balance);
         self.leaves
             .iter()
             .map(|&l| self.state[l as usize].b)
@@ -2217,17 +2256,25 @@ fn shared(shaft: Shaft) -> Arc<Shaft> {
 /// One value per receiver point of a link (at most 16 for the 4 × 4 rule), on the stack.
 type PointValues = SmallVec<[f64; 16]>;
 
-/// Appends `link` to a node's list, growing the list by a quarter when it is full (at least
-/// four links) instead of doubling it: the lists are most of the memory at the peak, which
-/// comes in the last iterations, and doubled they held 1.44 times their links in the room of
-/// 3000 objects. Measured peaks with doubling and with this: rooms of 1000 and 3000 objects
-/// 247 → 228 and 581 → 510 MiB, the links identical. (Trimming every list to its length
-/// after the refinement instead raised the peak: the freed tails stay with the allocator.)
-fn push_link(list: &mut Vec<Link>, link: Link) {
-    if list.len() == list.capacity() {
-        list.reserve_exact((list.len() / 4).max(4));
+/// Appends the links `run` (emptied) to receiver `p`'s list (none when `p` is [`NONE`]),
+/// growing it at most once, by no more than the run or a quarter of what it holds (at least
+/// four), so that no list has more than a quarter spare (see [`LINK_BYTES`]), instead of
+/// doubling it: the lists are most of the memory at the peak, which comes in the last
+/// iterations, and doubled they held 1.44 times their links in the room of 3000 objects.
+/// Measured peaks with doubling and with a quarter: rooms of 1000 and 3000 objects 247 → 228
+/// and 581 → 510 MiB, the links identical. (Trimming every list to its length after the
+/// refinement instead raised the peak: the freed tails stay with the allocator.) One
+/// reservation per run of a receiver's links, not per link: the candidates come receiver by
+/// receiver.
+fn extend_links(links: &mut [Vec<Link>], p: u32, run: &mut SmallVec<[Link; 16]>) {
+    if p == NONE || run.is_empty() {
+        return;
     }
-    list.push(link);
+    let list = &mut links[p as usize];
+    if list.capacity() - list.len() < run.len() {
+        list.reserve_exact(run.len().max(list.len() / 4).max(4));
+    }
+    list.extend(run.drain(..));
 }
 
 /// Candidate links decided at once in a round of [`Hierarchical::refine_reporting`]: 3 MB
@@ -2281,17 +2328,11 @@ fn pull_state_into(tree: &Tree, leaves: &[u32], leaf_b: &[[f64; 3]], buffers: &m
     state.clear();
     state.resize(tree.nodes.len(), Pulled::default());
     for (e, &node) in leaves.iter().enumerate() {
-        let n = &tree.nodes[node as usize];
-        let b = leaf_b[e];
-        state[node as usize] = Pulled {
-            b,
-            m: b.map(|x| n.vector_area * x),
-            ..Pulled::default()
-        };
+        state[node as usize].b = leaf_b[e];
     }
-    // The first moments ∫ B (y − c) dA of polygon nodes, for their gradients, are held in
-    // the gradients' place until every node is pulled (a vector of their own before: 72
-    // bytes per node), then turned into gradients.
+    // A polygon node's first moment ∫ B (y − c) dA, for its gradient, is held in the
+    // gradient's place until every node is pulled (a vector of its own before: 72 bytes per
+    // node), then turned into the gradient.
     for i in (0..tree.nodes.len()).rev() {
         let n = &tree.nodes[i];
         if n.child_count == 0 {
@@ -2299,46 +2340,51 @@ fn pull_state_into(tree: &Tree, leaves: &[u32], leaf_b: &[[f64; 3]], buffers: &m
         }
         let mut s = Pulled::default();
         for c in n.children() {
-            let cs = &state[c as usize];
-            let a = tree.nodes[c as usize].area;
+            let (cn, cs) = (&tree.nodes[c as usize], &state[c as usize]);
             for k in 0..3 {
-                s.b[k] += cs.b[k] * a;
-                s.m[k] += cs.m[k];
+                s.b[k] += cs.b[k] * cn.area;
+            }
+            if n.is_polygon() {
+                // ∫ B (y − c) dA = Σ_children [∫_child B (y − c_child) dA
+                //                               + A_child B̄_child (c_child − c)].
+                for k in 0..3 {
+                    s.v[k] += cs.v[k] + (cn.centre - n.centre) * (cn.area * cs.b[k]);
+                }
+            } else {
+                let m = cs.exitance(cn);
+                for k in 0..3 {
+                    s.v[k] += m[k];
+                }
             }
         }
         if n.area > 0.0 {
             s.b = s.b.map(|x| x / n.area);
         }
-        if n.is_polygon() {
-            // ∫ B (y − c) dA = Σ_children [∫_child B (y − c_child) dA + A_child B̄_child (c_child − c)].
-            for ch in n.children() {
-                let (cn, cs) = (&tree.nodes[ch as usize], &state[ch as usize]);
-                for k in 0..3 {
-                    s.gradient[k] += cs.gradient[k] + (cn.centre - n.centre) * (cn.area * cs.b[k]);
-                }
-            }
-        }
         state[i] = s;
     }
     // ∇B = S⁻¹ ∫ B (y − c) dA in the plane (S the node's second moment of area); zero where
-    // S is singular.
-    for (n, s) in tree.nodes.iter().zip(state.iter_mut()) {
-        if !n.is_polygon() || n.child_count == 0 {
-            continue;
-        }
-        let (u, v) = n.axis.any_orthonormal_pair();
-        let [suu, suv, svv] = n.plane_moment;
-        let det = suu * svv - suv * suv;
-        for k in 0..3 {
-            let t = s.gradient[k];
-            s.gradient[k] = if det > 1e-12 * (suu * svv).max(f64::MIN_POSITIVE) {
-                let (tu, tv) = (t.dot(u), t.dot(v));
-                u * ((tu * svv - tv * suv) / det) + v * ((tv * suu - tu * suv) / det)
-            } else {
-                DVec3::ZERO
-            };
-        }
-    }
+    // S is singular. Node by node: in parallel.
+    tree.nodes
+        .par_iter()
+        .zip(state.par_iter_mut())
+        .with_min_len(1024)
+        .for_each(|(n, s)| {
+            if !n.is_polygon() || n.child_count == 0 {
+                return;
+            }
+            let (u, v) = n.axis.any_orthonormal_pair();
+            let [suu, suv, svv] = n.plane_moment;
+            let det = suu * svv - suv * suv;
+            for k in 0..3 {
+                let t = s.v[k];
+                s.v[k] = if det > 1e-12 * (suu * svv).max(f64::MIN_POSITIVE) {
+                    let (tu, tv) = (t.dot(u), t.dot(v));
+                    u * ((tu * svv - tv * suv) / det) + v * ((tv * suu - tu * suv) / det)
+                } else {
+                    DVec3::ZERO
+                };
+            }
+        });
 }
 
 /// The oracle's state from the pulled one, into `state`: the mean radiosity, the largest
@@ -2395,7 +2441,7 @@ fn set_spread(tree: &Tree, leaves: &[u32], pulled: &[Pulled], state: &mut [State
         while a != NONE && tree.nodes[a as usize].is_polygon() {
             let (na, sa) = (&tree.nodes[a as usize], &mut state[a as usize]);
             for c in 0..3 {
-                let fitted = sa.b[c] + pulled[a as usize].gradient[c].dot(centre - na.centre);
+                let fitted = sa.b[c] + pulled[a as usize].v[c].dot(centre - na.centre);
                 sa.spread[c] = sa.spread[c].max((b[c] - fitted).abs());
             }
             a = na.parent;
@@ -2421,7 +2467,7 @@ fn gather_into(links: &[Vec<Link>], state: &[Pulled], gathered: &mut Vec<Gathere
                         let g = DVec3::from_array(gradient.map(f64::from));
                         let m = DVec3::from_array(moment.map(f64::from));
                         for c in 0..3 {
-                            out.h[c] += f as f64 * s.b[c] + m.dot(s.gradient[c]);
+                            out.h[c] += f as f64 * s.b[c] + m.dot(s.v[c]);
                             out.v[c] += g * s.b[c];
                         }
                     }
@@ -2433,7 +2479,7 @@ fn gather_into(links: &[Vec<Link>], state: &[Pulled], gathered: &mut Vec<Gathere
                     Transfer::FromCluster(g, _) => {
                         let g = DVec3::from_array(g.map(f64::from));
                         for c in 0..3 {
-                            out.h[c] += g.dot(s.m[c]);
+                            out.h[c] += g.dot(s.v[c]);
                         }
                     }
                     Transfer::ToCluster(g, _) => {
@@ -2445,7 +2491,7 @@ fn gather_into(links: &[Vec<Link>], state: &[Pulled], gathered: &mut Vec<Gathere
                     Transfer::Tensor(t, _) => {
                         let t = t.map(f64::from);
                         for c in 0..3 {
-                            let m = s.m[c];
+                            let m = s.v[c];
                             out.v[c] += DVec3::new(
                                 t[0] * m.x + t[3] * m.y + t[4] * m.z,
                                 t[3] * m.x + t[1] * m.y + t[5] * m.z,
