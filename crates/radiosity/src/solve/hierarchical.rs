@@ -44,6 +44,20 @@ pub struct HierarchicalSolution {
 /// Stages of the threshold schedule: 16 ε, 8 ε, 4 ε, 2 ε, ε.
 const STAGES: u32 = 5;
 
+/// The intermediate stages iterate to this many times the solver's tolerance (at most
+/// [`STAGE_TOLERANCE_CAP`]): their radiosities only set the next refinement's thresholds
+/// (ε of each receiver's irradiance), and an error of 3 % in them (at the default 1e-3)
+/// moves a threshold by 3 %, small against the factor 2 between the stages. Measured
+/// against 10 (1 % before): the Cornell box 26 iterations instead of 33, its objects
+/// within 8.4e-5 of each other (against Mitsuba: mean 0.77 %, worst 1.82 % both); the
+/// furnished room of 300 objects at ε = 0.02 36 instead of 42, 675,132 links instead of
+/// 675,133, per-object error against the room at ε = 0.005 (area mean, p95, worst) 0.307 /
+/// 1.010 / 1.746 % instead of 0.307 / 1.005 / 1.748 %.
+const STAGE_TOLERANCE_FACTOR: f64 = 30.0;
+
+/// The loosest tolerance of an intermediate stage.
+const STAGE_TOLERANCE_CAP: f64 = 0.05;
+
 /// Solves `scene` hierarchically with the form-factor kernel of `method`. The refinement of
 /// each stage is reported to `progress` as the stage "linking" with no total (how many
 /// candidate links a stage examines is not known ahead), its message the stage, ε and the
@@ -95,7 +109,7 @@ pub fn solve(
             tolerance: if stage == 0 {
                 options.tolerance
             } else {
-                (options.tolerance * 10.0).min(0.05)
+                (options.tolerance * STAGE_TOLERANCE_FACTOR).min(STAGE_TOLERANCE_CAP)
             },
             ..*options
         };
