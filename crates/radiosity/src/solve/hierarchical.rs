@@ -58,6 +58,20 @@ const STAGE_TOLERANCE_FACTOR: f64 = 30.0;
 /// The loosest tolerance of an intermediate stage.
 const STAGE_TOLERANCE_CAP: f64 = 0.05;
 
+/// The most iterations an intermediate stage takes (from the previous stage's radiosities;
+/// the first from B = E), for the same reason. Measured against no cap (after the factor
+/// 30 above): the Cornell box 20 iterations instead of 26, the same 72,898 links, its error
+/// against Mitsuba 0.81 % mean and 1.82 % worst both; at ε = 0.02 the furnished room of 300
+/// objects 24 instead of 36, 675,059 links instead of 675,132, its error against its
+/// ε = 0.005 solve (area mean, p95, worst) 0.308 / 1.006 / 1.745 % against 0.307 / 1.010 /
+/// 1.746 %, and the room of 1000 objects 24 instead of 34, 0.368 / 1.280 / 5.660 % against
+/// 0.368 / 1.283 / 5.661 %, 3 % less CPU. (Three: the Cornell box 18 iterations, worst
+/// 1.82 %; two: 18, worst 1.85 %, the later stages then iterating more.) Where a scene
+/// converges slowly an intermediate stage's radiosities come out low, but a link's error
+/// (δ B_q) and its threshold (ε H_p) scale with them alike, and the final stage iterates to
+/// the solver's own tolerance.
+const STAGE_ITERATIONS: usize = 4;
+
 /// Solves `scene` hierarchically with the form-factor kernel of `method`. The refinement of
 /// each stage is reported to `progress` as the stage "linking" with no total (how many
 /// candidate links a stage examines is not known ahead), its message the stage, ε and the
@@ -110,6 +124,11 @@ pub fn solve(
                 options.tolerance
             } else {
                 (options.tolerance * STAGE_TOLERANCE_FACTOR).min(STAGE_TOLERANCE_CAP)
+            },
+            max_iterations: if stage == 0 {
+                options.max_iterations
+            } else {
+                options.max_iterations.min(STAGE_ITERATIONS)
             },
             ..*options
         };
