@@ -74,7 +74,8 @@ impl Progress for Bars {
             return;
         }
         // A stage whose amount of work is not known ahead (total 0) shows a spinner and
-        // its count, with no ETA rather than a wrong one.
+        // its count, with no ETA rather than a wrong one (the hierarchical solver's linking
+        // puts its own estimate, from the stages it has run, in its message).
         let (length, template) = if total == 0 {
             (None, "{prefix:>14} {spinner} {pos} {msg} ({elapsed})")
         } else {

@@ -97,6 +97,178 @@ impl ConvergenceEta {
     }
 }
 
+/// Estimates the time left in the hierarchical solver's linking: every refinement stage
+/// still to run, from the work of the stages run so far
+/// ([`crate::solve::hierarchical`]: the link tolerance halves from one stage to the next).
+///
+/// A stage decides its candidate links in rounds: the links re-examined first, then the
+/// children of every pair split in the round before. Its amount of work is not known ahead,
+/// but its rounds follow one pattern: the second round about twice the first (most
+/// re-examined links split), then each round smaller than the one before by a roughly
+/// steady factor. So the candidates still to come in the current stage are
+/// - in its first round, [`LinkingEta::FIRST_ROUND_SHARE`]⁻¹ times that round;
+/// - later, what the rounds so far continue to as a geometric series at the ratio of the
+///   last two (at least [`LinkingEta::DEFAULT_DECAY`] while the rounds still grow, at
+///   most [`LinkingEta::MOST_DECAY`]);
+///
+/// at the seconds per candidate measured in this stage once a tenth of it is done (the
+/// previous stage's before); and each later stage is taken to last
+/// [`LinkingEta::STAGE_GROWTH`] times the one before. The first stage, which opens the
+/// hierarchy from its root, has nothing to go by: no estimate until it ends.
+///
+/// How far off it is, on recorded linkings and on the solver's own: see the tests below and
+/// the README's section on the hierarchical solver.
+#[derive(Debug, Clone)]
+pub struct LinkingEta {
+    stages: u32,
+    /// Stages finished: the seconds each took, and the seconds per candidate of its rounds
+    /// after the first (see [`LinkingEta::later_rate`]).
+    finished: Vec<(f64, Option<f64>)>,
+    /// When the current stage started (seconds on the caller's clock).
+    started: f64,
+    /// The current stage's rounds so far (candidates each).
+    rounds: Vec<u64>,
+    /// Candidates decided in the current stage.
+    decided: u64,
+    /// When its second round began, and the candidates decided by then.
+    second_round: Option<(f64, u64)>,
+    /// When the last chunk was reported.
+    last_report: f64,
+}
+
+impl LinkingEta {
+    /// The share of a stage's candidates that its first round holds, from the third stage
+    /// on: measured 0.06 to 0.20 there in the Cornell box and the furnished rooms of 30 and
+    /// 300 objects (0.17 to 0.20 in the last stage: the later the stage, the more of its
+    /// candidates are links re-examined).
+    pub const FIRST_ROUND_SHARE: f64 = 1.0 / 6.0;
+    /// The same in the second stage (the first to re-examine links): measured 0.05 to 0.08.
+    pub const FIRST_ROUND_SHARE_SECOND_STAGE: f64 = 1.0 / 12.0;
+    /// The ratio between successive rounds taken after a round that grew: measured 0.55 to
+    /// 0.65 after the second round of the last stages in the same scenes.
+    pub const DEFAULT_DECAY: f64 = 0.6;
+    /// The largest ratio between successive rounds that a tail is extrapolated with (the
+    /// second stages' rounds fall by 0.86 to 0.9 a round at first).
+    pub const MOST_DECAY: f64 = 0.9;
+    /// How much longer a stage takes than the one before: from the third stage on, 1.1 to
+    /// 2.6 in the same scenes (median 1.5); the tolerance halves, so more links pass it.
+    pub const STAGE_GROWTH: f64 = 1.5;
+
+    /// An estimator for a linking of `stages` stages.
+    pub fn new(stages: u32) -> Self {
+        Self {
+            stages,
+            finished: Vec::new(),
+            started: 0.0,
+            rounds: Vec::new(),
+            decided: 0,
+            second_round: None,
+            last_report: 0.0,
+        }
+    }
+
+    /// A stage begins at `now` (seconds).
+    pub fn start_stage(&mut self, now: f64) {
+        self.started = now;
+        self.rounds.clear();
+        self.decided = 0;
+        self.second_round = None;
+        self.last_report = now;
+    }
+
+    /// At `now`, `decided` more candidates of round `round` (of `round_candidates`) of the
+    /// current stage are decided (rounds counted from 0, reported in order).
+    pub fn advance(&mut self, round: usize, round_candidates: u64, decided: u64, now: f64) {
+        if round >= self.rounds.len() {
+            if self.rounds.len() == 1 {
+                // The second round's time counts from the first round's last report.
+                self.second_round = Some((self.last_report, self.decided));
+            }
+            self.rounds.push(round_candidates);
+        }
+        self.decided += decided;
+        self.last_report = now;
+    }
+
+    /// The current stage ends at `now`.
+    pub fn finish_stage(&mut self, now: f64) {
+        let rate = self.later_rate(now, 0.0);
+        self.finished.push(((now - self.started).max(0.0), rate));
+        self.start_stage(now);
+    }
+
+    /// The seconds per candidate of the current stage's rounds after the first, once at
+    /// least `enough` of them are decided. The first round is mostly links re-examined,
+    /// which keep their estimates and cast no rays: ten times cheaper or more.
+    fn later_rate(&self, now: f64, enough: f64) -> Option<f64> {
+        let (since, before) = self.second_round?;
+        let n = self.decided.saturating_sub(before);
+        (n > 0 && n as f64 >= enough).then(|| (now - since).max(0.0) / n as f64)
+    }
+
+    /// The candidates the current stage is expected to decide in all.
+    fn expected_candidates(&self) -> f64 {
+        let so_far: f64 = self.rounds.iter().map(|&r| r as f64).sum();
+        let share = if self.finished.len() == 1 {
+            Self::FIRST_ROUND_SHARE_SECOND_STAGE
+        } else {
+            Self::FIRST_ROUND_SHARE
+        };
+        let from_first = self.rounds.first().map_or(0.0, |&r| r as f64 / share);
+        let expected = match self.rounds.as_slice() {
+            [] => 0.0,
+            [_] => from_first,
+            [.., before, last] => {
+                let (before, last) = (*before as f64, *last as f64);
+                if last < before {
+                    let ratio = (last / before).min(Self::MOST_DECAY);
+                    so_far + last * ratio / (1.0 - ratio)
+                } else {
+                    // Still growing: at least what the first round's share says.
+                    (so_far + last * Self::DEFAULT_DECAY / (1.0 - Self::DEFAULT_DECAY))
+                        .max(from_first)
+                }
+            }
+        };
+        expected.max(self.decided as f64)
+    }
+
+    /// Seconds left until the last stage's linking ends, at `now`; `None` during the first
+    /// stage (see above), while no stage has had a second round to time, or once every stage
+    /// has finished.
+    pub fn eta(&self, now: f64) -> Option<f64> {
+        let stage = self.finished.len() as u32 + 1;
+        if self.finished.is_empty() || stage > self.stages {
+            return None;
+        }
+        let elapsed = (now - self.started).max(0.0);
+        let first = self.rounds.first().copied().unwrap_or(0);
+        let expected = self.expected_candidates();
+        // The first round at the pace it goes (nothing to go by before its first chunk).
+        let first_left = match self.second_round {
+            Some(_) => 0.0,
+            None if self.decided > 0 => {
+                first.saturating_sub(self.decided) as f64 * elapsed / self.decided as f64
+            }
+            None => 0.0,
+        };
+        // The later rounds at this stage's pace once a tenth of them is done, else the
+        // last stage that had later rounds (none: nothing to go by).
+        let later_expected = (expected - first as f64).max(0.0);
+        let previous = self.finished.iter().rev().find_map(|&(_, rate)| rate);
+        let rate = self.later_rate(now, 0.1 * later_expected).or(previous)?;
+        let later_done = self
+            .second_round
+            .map_or(0, |(_, before)| self.decided - before);
+        let left_here = first_left + (later_expected - later_done as f64).max(0.0) * rate;
+        let this_stage = elapsed + left_here;
+        let later: f64 = (1..=self.stages - stage)
+            .map(|k| this_stage * Self::STAGE_GROWTH.powi(k as i32))
+            .sum();
+        Some(left_here + later)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -169,5 +341,204 @@ mod tests {
         assert!((eta.eta().unwrap() - to(1e-3)).abs() < 1e-9);
         eta.retarget(1e-5);
         assert!((eta.eta().unwrap() - to(1e-5)).abs() < 1e-9);
+    }
+
+    /// Rounds (candidates each) and seconds of the five linking stages of hierarchical
+    /// solves at ε = 0.02 (release build, 2-core machine, 2026-12-07): the Cornell box and
+    /// the furnished rooms of 30 and 300 objects (`generate::furnished_room(N, 1)`).
+    const RECORDED: [[(&[u64], f64); 5]; 3] = [
+        [
+            (
+                &[
+                    1, 4, 4, 12, 32, 80, 146, 180, 160, 136, 136, 108, 104, 112, 110, 58, 14, 8,
+                ],
+                0.003,
+            ),
+            (
+                &[
+                    184, 568, 638, 382, 306, 374, 440, 326, 322, 238, 100, 24, 12,
+                ],
+                0.010,
+            ),
+            (
+                &[
+                    623, 1908, 1764, 950, 744, 810, 736, 782, 786, 772, 388, 172, 264,
+                ],
+                0.026,
+            ),
+            (
+                &[
+                    2313, 5912, 4608, 1890, 1766, 1274, 1420, 928, 666, 322, 132, 108, 4,
+                ],
+                0.038,
+            ),
+            (
+                &[6560, 15044, 7280, 2494, 1992, 1188, 992, 458, 272, 40, 4],
+                0.063,
+            ),
+        ],
+        [
+            (
+                &[
+                    1, 4, 4, 12, 32, 80, 184, 370, 734, 1412, 2292, 3058, 3572, 3856, 3826, 3644,
+                    3422, 3444, 3194, 2686, 3656, 2290, 1464, 2772, 804, 370, 232, 88, 28, 12,
+                ],
+                0.061,
+            ),
+            (
+                &[
+                    2389, 5016, 4964, 4386, 4218, 3678, 3022, 2726, 1872, 1796, 1636, 870, 420,
+                    268, 348, 322, 384,
+                ],
+                0.075,
+            ),
+            (
+                &[
+                    4747, 11436, 8730, 6334, 4876, 3420, 2220, 1716, 800, 642, 518, 764,
+                ],
+                0.107,
+            ),
+            (
+                &[
+                    10268, 22862, 15846, 9652, 7654, 5432, 2974, 1656, 826, 570, 478, 28, 2,
+                ],
+                0.184,
+            ),
+            (
+                &[
+                    24205, 49262, 22082, 10574, 5506, 2900, 1988, 2030, 154, 78, 4,
+                ],
+                0.248,
+            ),
+        ],
+        [
+            (
+                &[
+                    1, 4, 4, 12, 32, 80, 184, 416, 886, 1818, 3504, 6602, 12314, 21008, 29480,
+                    35050, 36534, 35714, 33498, 30342, 27796, 26932, 27546, 27868, 26288, 20656,
+                    14136, 9196, 5338, 2716, 1100, 352, 82, 14, 4,
+                ],
+                0.581,
+            ),
+            (
+                &[
+                    29616, 54118, 46608, 40232, 36180, 31786, 27408, 23404, 18246, 15488, 11210,
+                    8714, 5966, 4154, 2386, 1146, 566, 218, 94, 18,
+                ],
+                0.641,
+            ),
+            (
+                &[
+                    46237, 85246, 61944, 45144, 28760, 18218, 10786, 6380, 3672, 2260, 1814, 1534,
+                    918, 414, 82, 4,
+                ],
+                0.697,
+            ),
+            (
+                &[
+                    79930, 144730, 91436, 60528, 37366, 22002, 12366, 6242, 3050, 1598, 814, 426,
+                    174, 36, 4, 2,
+                ],
+                1.039,
+            ),
+            (
+                &[
+                    130923, 233634, 130562, 80746, 48852, 28554, 15926, 8278, 4166, 2190, 1154,
+                    534, 184, 34, 6,
+                ],
+                1.625,
+            ),
+        ],
+    ];
+
+    /// The worst factor by which the linking ETA is off (predicted ÷ actual time left, or
+    /// its inverse) over a recorded linking replayed in chunks of at most `chunk`
+    /// candidates, a first round's candidate taking a tenth of a later one's (it reuses its
+    /// estimate), from the start of the second stage until 5 % of the linking is left (the
+    /// last rounds are a few small ones, whose pace no estimate follows).
+    fn worst_linking_ratio(stages: &[(&[u64], f64); 5], chunk: u64) -> f64 {
+        let total: f64 = stages.iter().map(|s| s.1).sum();
+        let mut eta = LinkingEta::new(5);
+        let (mut now, mut worst) = (0.0f64, 1.0f64);
+        for (index, &(rounds, seconds)) in stages.iter().enumerate() {
+            let weight = |round: usize| if round == 0 && index > 0 { 0.1 } else { 1.0 };
+            let units: f64 = rounds
+                .iter()
+                .enumerate()
+                .map(|(k, &r)| r as f64 * weight(k))
+                .sum();
+            let per_unit = seconds / units;
+            eta.start_stage(now);
+            for (k, &candidates) in rounds.iter().enumerate() {
+                let mut left_in_round = candidates;
+                while left_in_round > 0 {
+                    let n = left_in_round.min(chunk);
+                    left_in_round -= n;
+                    now += n as f64 * weight(k) * per_unit;
+                    eta.advance(k, candidates, n, now);
+                    let left = total - now;
+                    if let Some(predicted) = eta.eta(now) {
+                        if left > 0.05 * total {
+                            let ratio = predicted.max(1e-3 * total) / left;
+                            worst = worst.max(ratio).max(1.0 / ratio);
+                        }
+                    } else {
+                        assert_eq!(index, 0, "no estimate after the first stage");
+                    }
+                }
+            }
+            eta.finish_stage(now);
+        }
+        assert!(eta.eta(now).is_none(), "an estimate after the last stage");
+        worst
+    }
+
+    #[test]
+    fn linking_eta_is_within_a_small_factor_of_recorded_linkings_after_the_first_stage() {
+        // In chunks as the solver reports them (65,536) and in finer ones. The bounds are
+        // what the estimator's constants, each a median or range over these recordings,
+        // give here (2.26× and 2.07× for the rooms, 3.86× for the Cornell box) with a small
+        // margin: 2.5× for the rooms; 4× for the Cornell box, whose stages
+        // grow 2.6–3.3 times in its early stages (the rooms' 1.1–1.2) and whose whole
+        // linking, 0.14 s, passes below the bar's resolution of 0.1 s. Measured on the solver
+        // itself, the rooms of 1000 and 3000 objects (not recorded here) came within
+        // 0.53–1.58× and 0.47–1.61× until their last 3 % (see the README).
+        for ((scene, stages), bound) in ["Cornell box", "room of 30", "room of 300"]
+            .iter()
+            .zip(&RECORDED)
+            .zip([4.0, 2.5, 2.5])
+        {
+            for chunk in [65_536, 1024] {
+                let worst = worst_linking_ratio(stages, chunk);
+                assert!(
+                    worst <= bound,
+                    "{scene}, chunks of {chunk}: off by {worst:.2}×"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn linking_eta_extrapolates_a_falling_round_tail_and_later_stages() {
+        // A second stage of rounds 100, 200, 100, 50 (each half the one before from the
+        // third: the tail is 50 more), 1 s per candidate after the first round; the first
+        // stage took 10 s. After the third round starts (one chunk decided): 100 + 200 + 100
+        // + 50 + 50 expected, 300 + 100 decided → 100 candidates (100 s) left here; the three
+        // later stages 1.5, 2.25 and 3.375 times this one's 500 + 100 s.
+        let mut eta = LinkingEta::new(5);
+        eta.start_stage(0.0);
+        eta.advance(0, 1, 1, 10.0);
+        eta.finish_stage(10.0);
+        eta.start_stage(10.0);
+        eta.advance(0, 100, 100, 20.0);
+        eta.advance(1, 200, 200, 220.0);
+        eta.advance(2, 100, 100, 320.0);
+        let this_stage = 310.0 + 100.0;
+        let expected = 100.0 + this_stage * (1.5 + 2.25 + 3.375);
+        let got = eta.eta(320.0).unwrap();
+        assert!(
+            (got - expected).abs() < 1e-9 * expected,
+            "{got} against {expected}"
+        );
     }
 }

@@ -678,9 +678,10 @@ impl radiosity::progress::Progress for Recorder {
 #[test]
 fn linking_is_shown_stage_by_stage_with_the_links_kept() {
     // The refinement (most of a large scene's time) reports each of its five stages as a
-    // "linking" stage without a total (its work is not known ahead, so no ETA is claimed),
-    // with the count of candidate links examined and the links kept; the last message
-    // carries the final link count.
+    // "linking" stage without a total (its work is not known ahead), with the count of
+    // candidate links examined, the links kept and, from the second stage on, an estimate
+    // of the linking time left (`progress::LinkingEta`); the first stage has none, and each
+    // stage's last message carries its final link count alone.
     let recorder = Recorder::default();
     let solved = solve_scene(&cornell_box(), &hierarchical(0.05), &recorder).unwrap();
     let events = recorder.events.into_inner().unwrap();
@@ -688,6 +689,18 @@ fn linking_is_shown_stage_by_stage_with_the_links_kept() {
     assert_eq!(starts.len(), 5, "{starts:?}");
     assert!(starts.iter().all(|e| *e == "start linking 0"), "{starts:?}");
     assert_eq!(events.iter().filter(|e| *e == "finish").count(), 5);
+    let with_eta = |stage: usize| {
+        events.iter().any(|e| {
+            e.starts_with(&format!("message stage {stage} of 5,")) && e.contains("linking eta ")
+        })
+    };
+    assert!(!with_eta(1), "an estimate in the first stage");
+    assert!((2..=5).all(with_eta), "{events:?}");
+    for (i, e) in events.iter().enumerate() {
+        if e == "finish" {
+            assert!(events[i - 1].ends_with(" links kept"), "{}", events[i - 1]);
+        }
+    }
     let last = events
         .iter()
         .rev()

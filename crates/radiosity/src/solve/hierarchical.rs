@@ -16,7 +16,7 @@ use crate::coupling::hierarchical::{Hierarchical, HierarchicalError, Hierarchica
 use crate::coupling::Coupling;
 use crate::formfactor::FormFactorMethod;
 use crate::mesh::Mesh;
-use crate::progress::Progress;
+use crate::progress::{LinkingEta, Progress};
 use crate::scene::Scene;
 
 /// What the hierarchical solve produced.
@@ -74,8 +74,9 @@ const STAGE_ITERATIONS: usize = 4;
 
 /// Solves `scene` hierarchically with the form-factor kernel of `method`. The refinement of
 /// each stage is reported to `progress` as the stage "linking" with no total (how many
-/// candidate links a stage examines is not known ahead), its message the stage, ε and the
-/// links so far; the iterations go to `observer` as for the other solvers.
+/// candidate links a stage examines is not known ahead), its message the stage, ε, the
+/// links so far and, from the second stage on, the linking time left as [`LinkingEta`]
+/// estimates it; the iterations go to `observer` as for the other solvers.
 pub fn solve(
     scene: &Scene,
     method: FormFactorMethod,
@@ -102,15 +103,36 @@ pub fn solve(
         stopped: false,
         observer_seconds: 0.0,
     };
+    // The linking's ETA counts the linking alone (the iterations between its stages are a
+    // few sweeps each and show their own).
+    let mut linking_eta = LinkingEta::new(STAGES);
+    let mut linking_seconds = 0.0;
     for stage in (0..STAGES).rev() {
         let epsilon = hierarchy.epsilon * f64::from(1u32 << stage);
         progress.start("linking", 0);
         let label = format!("stage {} of {STAGES}, ε {epsilon:.3}", STAGES - stage);
         progress.message(&label);
-        h.refine_reporting(epsilon, &mut |candidates, links| {
-            progress.inc(candidates as u64);
-            progress.message(&format!("{label}, {links} links kept"));
+        let stage_started = std::time::Instant::now();
+        linking_eta.start_stage(linking_seconds);
+        let mut links_kept = h.link_count();
+        h.refine_reporting(epsilon, &mut |step| {
+            let now = linking_seconds + stage_started.elapsed().as_secs_f64();
+            linking_eta.advance(
+                step.round,
+                step.round_candidates as u64,
+                step.decided as u64,
+                now,
+            );
+            links_kept = step.links;
+            progress.inc(step.decided as u64);
+            progress.message(&match linking_eta.eta(now) {
+                Some(eta) => format!("{label}, {links_kept} links kept, linking eta {eta:.1} s"),
+                None => format!("{label}, {links_kept} links kept"),
+            });
         });
+        linking_seconds += stage_started.elapsed().as_secs_f64();
+        linking_eta.finish_stage(linking_seconds);
+        progress.message(&format!("{label}, {links_kept} links kept"));
         progress.finish();
         // The final mesh is balanced in full; the others only guide the next refinement.
         b = if stage == 0 {

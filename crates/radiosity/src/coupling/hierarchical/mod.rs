@@ -314,6 +314,20 @@ pub struct Hierarchical {
     gather_buffers: std::sync::Mutex<GatherBuffers>,
 }
 
+/// What [`Hierarchical::refine_reporting`] reports after each chunk of candidate links.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RefineStep {
+    /// The round the chunk belongs to (0 for the links re-examined; then the children of the
+    /// pairs split in the round before).
+    pub round: usize,
+    /// Candidates in that round.
+    pub round_candidates: usize,
+    /// Candidates decided in the chunk.
+    pub decided: usize,
+    /// Links accepted so far.
+    pub links: usize,
+}
+
 /// What the oracle decided for a candidate link.
 enum Decision {
     /// No light passes (facing away, coplanar).
@@ -601,12 +615,12 @@ impl Hierarchical {
     /// bright ones) is resolved to ε. Returns whether the hierarchy changed. The first call
     /// starts from the root's link to itself.
     pub fn refine(&mut self, epsilon: f64) -> bool {
-        self.refine_reporting(epsilon, &mut |_, _| {})
+        self.refine_reporting(epsilon, &mut |_| {})
     }
 
-    /// [`Hierarchical::refine`], calling `report(candidates, links)` after every chunk of
-    /// candidate links examined (the candidates of that chunk, the links accepted so far).
-    pub fn refine_reporting(&mut self, epsilon: f64, report: &mut dyn FnMut(usize, usize)) -> bool {
+    /// [`Hierarchical::refine`], calling `report` after every chunk of candidate links
+    /// examined.
+    pub fn refine_reporting(&mut self, epsilon: f64, report: &mut dyn FnMut(RefineStep)) -> bool {
         let started = std::time::Instant::now();
         // The gather's scratch is not held while the links grow (a room of 1000 objects
         // peaked at 412 MB when it was, 382 MB now).
@@ -646,6 +660,7 @@ impl Hierarchical {
         }
         let mut forced = 0;
         let mut link_count = self.link_count();
+        let mut round = 0;
         while !pending.is_empty() {
             // The round's candidates are decided a chunk at a time, and only the splits are
             // held until the round ends: a decision is 48 bytes and a kept split 16, against
@@ -691,7 +706,12 @@ impl Hierarchical {
                     }
                 }
                 extend_links(&mut self.links, run_receiver, &mut run);
-                report(chunk.len(), link_count);
+                report(RefineStep {
+                    round,
+                    round_candidates: pending.len(),
+                    decided: chunk.len(),
+                    links: link_count,
+                });
             }
             kept = Vec::new();
             let mut split: Vec<u32> = splits.iter().map(|&(_, n, _)| n).collect();
@@ -736,6 +756,7 @@ impl Hierarchical {
             self.inherit_state(leaves_before);
             next.par_sort_unstable_by_key(|c| (c.0, c.1));
             pending = next;
+            round += 1;
         }
         // Node by node, in parallel (a tenth of the single-threaded work between the rounds
         // of the furnished room of 1000 objects).
