@@ -502,7 +502,7 @@ mod tests {
         // grow 2.6–3.3 times in its early stages (the rooms' 1.1–1.2) and whose whole
         // linking, 0.14 s, passes below the bar's resolution of 0.1 s. Measured on the solver
         // itself, the rooms of 1000 and 3000 objects (not recorded here) came within
-        // 0.53–1.58× and 0.47–1.61× until their last 3 % (see the README).
+        // 0.53–1.72× and 0.47–1.61× until their last 3 % (see the README).
         for ((scene, stages), bound) in ["Cornell box", "room of 30", "room of 300"]
             .iter()
             .zip(&RECORDED)
