@@ -106,13 +106,15 @@ impl ConvergenceEta {
 /// but its rounds follow one pattern: the second round about twice the first (most
 /// re-examined links split), then each round smaller than the one before by a roughly
 /// steady factor. So the candidates still to come in the current stage are
-/// - in its first round, [`LinkingEta::FIRST_ROUND_SHARE`]⁻¹ times that round;
+/// - in its first round, [`LinkingEta::FIRST_ROUND_SHARE`]⁻¹ times that round
+///   ([`LinkingEta::FIRST_ROUND_SHARE_SECOND_STAGE`] in the second stage);
 /// - later, what the rounds so far continue to as a geometric series at the ratio of the
-///   last two (at least [`LinkingEta::DEFAULT_DECAY`] while the rounds still grow, at
-///   most [`LinkingEta::MOST_DECAY`]);
+///   last two (at most [`LinkingEta::MOST_DECAY`]; while the rounds still grow,
+///   [`LinkingEta::DEFAULT_DECAY`] and at least what the first round's share says);
 ///
-/// at the seconds per candidate measured in this stage once a tenth of it is done (the
-/// previous stage's before); and each later stage is taken to last
+/// the first round at its own pace, the later ones at the seconds per candidate measured in
+/// this stage's later rounds once a tenth of them is done (the previous stage's before);
+/// and each later stage is taken to last
 /// [`LinkingEta::STAGE_GROWTH`] times the one before. The first stage, which opens the
 /// hierarchy from its root, has nothing to go by: no estimate until it ends.
 ///
