@@ -717,13 +717,30 @@ impl Hierarchical {
             let mut split: Vec<u32> = splits.iter().map(|&(_, n, _)| n).collect();
             split.sort_unstable();
             split.dedup();
-            for n in split {
-                if self.tree.nodes[n as usize].child_count == 0 {
-                    self.tree.subdivide(n);
-                }
+            // The pieces are made in parallel and enter the arena in node order, as one at a
+            // time did before (2 % of the Cornell box's solve on one thread).
+            let pieces: Vec<(u32, tree::Pieces)> = split
+                .par_iter()
+                .filter_map(|&n| self.tree.pieces(n).map(|pieces| (n, pieces)))
+                .collect();
+            for (n, pieces) in pieces {
+                self.tree.attach(n, pieces);
             }
             self.grow();
-            let mut next = Vec::new();
+            // Sized exactly, so that it neither grows nor holds spare.
+            let next_count: usize = splits
+                .iter()
+                .map(|&(i, n, _)| {
+                    let children = self.tree.nodes[n as usize].child_count as usize;
+                    let (p, q, _) = pending[i as usize];
+                    if p == q {
+                        children * children
+                    } else {
+                        children
+                    }
+                })
+                .sum();
+            let mut next = Vec::with_capacity(next_count);
             for (i, n, shaft) in splits {
                 let (p, q, _) = pending[i as usize];
                 let inherited = shaft.map(|shaft| Inherited {

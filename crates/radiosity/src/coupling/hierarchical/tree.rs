@@ -275,35 +275,7 @@ impl Tree {
     fn polygon_node(&mut self, vertices: &[DVec3], input: u32, depth: u16, parent: u32) -> Node {
         let start = self.vertices.len() as u32;
         self.vertices.extend_from_slice(vertices);
-        let (normal, area) = newell(vertices);
-        let centre = crate::formfactor::kernel::polygon_centroid(vertices);
-        let radius = vertices
-            .iter()
-            .map(|v| v.distance(centre))
-            .fold(0.0, f64::max);
-        Node {
-            parent,
-            first_child: NONE,
-            child_count: 0,
-            kind: Kind::Polygon { input },
-            vertex_start: start,
-            vertex_count: vertices.len() as u32,
-            leaves: (0, 0),
-            area,
-            vector_area: normal * area,
-            facing: facing(normal, area),
-            centre,
-            radius,
-            bounds: vertices
-                .iter()
-                .fold([DVec3::INFINITY, DVec3::NEG_INFINITY], |[lo, hi], v| {
-                    [lo.min(*v), hi.max(*v)]
-                }),
-            axis: normal,
-            cone_cos: 1.0,
-            depth,
-            plane_moment: plane_moment(vertices, centre, normal),
-        }
+        polygon_node_at(vertices, start, input, depth, parent)
     }
 
     /// Sets a cluster's summary from its two children.
@@ -358,29 +330,44 @@ impl Tree {
         };
     }
 
-    /// Splits polygon node `node` into its children (if it has none yet) and returns them:
-    /// see [`split_polygon`].
-    pub fn subdivide(&mut self, node: u32) -> std::ops::Range<u32> {
-        let n = self.nodes[node as usize].clone();
-        if n.child_count > 0 {
-            return n.children();
-        }
+    /// The children of polygon node `node` ([`split_polygon`]), not yet in the arena (their
+    /// vertices numbered from 0 in the pieces' own list; [`Tree::attach`] puts them there):
+    /// none for a node that has children or is a cluster. It only reads the tree, so that
+    /// many nodes' pieces can be made at once.
+    pub fn pieces(&self, node: u32) -> Option<Pieces> {
+        let n = &self.nodes[node as usize];
         let Kind::Polygon { input } = n.kind else {
-            return n.children();
+            return None;
         };
-        let vertices = self.polygon(node).to_vec();
-        let pieces = split_polygon(&vertices);
-        let first = self.nodes.len() as u32;
-        for piece in &pieces {
-            let child = self.polygon_node(piece, input, n.depth + 1, node);
-            self.nodes.push(Node {
+        if n.child_count > 0 {
+            return None;
+        }
+        let mut pieces = Pieces::default();
+        for piece in split_polygon(self.polygon(node)) {
+            let start = pieces.vertices.len() as u32;
+            pieces.vertices.extend_from_slice(&piece);
+            pieces.nodes.push(Node {
                 leaves: n.leaves,
-                ..child
+                ..polygon_node_at(&piece, start, input, n.depth + 1, node)
             });
         }
+        Some(pieces)
+    }
+
+    /// Puts the children `pieces` of `node` (from [`Tree::pieces`]) in the arena and returns
+    /// their range.
+    pub fn attach(&mut self, node: u32, pieces: Pieces) -> std::ops::Range<u32> {
+        let first = self.nodes.len() as u32;
+        let offset = self.vertices.len() as u32;
+        self.vertices.extend_from_slice(&pieces.vertices);
+        let count = pieces.nodes.len() as u32;
+        self.nodes.extend(pieces.nodes.into_iter().map(|mut child| {
+            child.vertex_start += offset;
+            child
+        }));
         let parent = &mut self.nodes[node as usize];
         parent.first_child = first;
-        parent.child_count = pieces.len() as u32;
+        parent.child_count = count;
         parent.children()
     }
 
@@ -512,6 +499,46 @@ const LONG_QUAD: f64 = 2.0;
 /// Cornell box's contact-split floor pieces then split differently for no better result
 /// (worst polygon 9.1 % instead of 7.7 % at ε = 0.02).
 const LONG_TRIANGLE: f64 = 4.0;
+
+/// The polygon node for `vertices`, stored from `start` in the tree's vertex arena.
+fn polygon_node_at(vertices: &[DVec3], start: u32, input: u32, depth: u16, parent: u32) -> Node {
+    let (normal, area) = newell(vertices);
+    let centre = crate::formfactor::kernel::polygon_centroid(vertices);
+    let radius = vertices
+        .iter()
+        .map(|v| v.distance(centre))
+        .fold(0.0, f64::max);
+    Node {
+        parent,
+        first_child: NONE,
+        child_count: 0,
+        kind: Kind::Polygon { input },
+        vertex_start: start,
+        vertex_count: vertices.len() as u32,
+        leaves: (0, 0),
+        area,
+        vector_area: normal * area,
+        facing: facing(normal, area),
+        centre,
+        radius,
+        bounds: vertices
+            .iter()
+            .fold([DVec3::INFINITY, DVec3::NEG_INFINITY], |[lo, hi], v| {
+                [lo.min(*v), hi.max(*v)]
+            }),
+        axis: normal,
+        cone_cos: 1.0,
+        depth,
+        plane_moment: plane_moment(vertices, centre, normal),
+    }
+}
+
+/// A polygon node's children made by [`Tree::pieces`], before they enter the arena.
+#[derive(Debug, Default)]
+pub struct Pieces {
+    nodes: Vec<Node>,
+    vertices: Vec<DVec3>,
+}
 
 /// How a polygon node splits: a triangle or quad into four by its order-2 lattice (edge
 /// midpoints), keeping its shape; an elongated one in two across its length, so that
