@@ -727,20 +727,7 @@ impl Hierarchical {
                 self.tree.attach(n, pieces);
             }
             self.grow();
-            // Sized exactly, so that it neither grows nor holds spare.
-            let next_count: usize = splits
-                .iter()
-                .map(|&(i, n, _)| {
-                    let children = self.tree.nodes[n as usize].child_count as usize;
-                    let (p, q, _) = pending[i as usize];
-                    if p == q {
-                        children * children
-                    } else {
-                        children
-                    }
-                })
-                .sum();
-            let mut next = Vec::with_capacity(next_count);
+            let mut next = Vec::new();
             for (i, n, shaft) in splits {
                 let (p, q, _) = pending[i as usize];
                 let inherited = shaft.map(|shaft| Inherited {

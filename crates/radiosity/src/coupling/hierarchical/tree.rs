@@ -354,9 +354,8 @@ impl Tree {
         Some(pieces)
     }
 
-    /// Puts the children `pieces` of `node` (from [`Tree::pieces`]) in the arena and returns
-    /// their range.
-    pub fn attach(&mut self, node: u32, pieces: Pieces) -> std::ops::Range<u32> {
+    /// Puts the children `pieces` of `node` (from [`Tree::pieces`]) in the arena.
+    pub fn attach(&mut self, node: u32, pieces: Pieces) {
         let first = self.nodes.len() as u32;
         let offset = self.vertices.len() as u32;
         self.vertices.extend_from_slice(&pieces.vertices);
@@ -368,7 +367,6 @@ impl Tree {
         let parent = &mut self.nodes[node as usize];
         parent.first_child = first;
         parent.child_count = count;
-        parent.children()
     }
 
     /// `count` points on the node's surfaces, spread by area, each with its surface's
