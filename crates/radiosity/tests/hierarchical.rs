@@ -677,7 +677,7 @@ impl radiosity::progress::Progress for Recorder {
 
 #[test]
 fn linking_is_shown_stage_by_stage_with_the_links_kept() {
-    // The refinement (most of a large scene's time) reports each of its five stages as a
+    // The refinement (most of a large scene's time) reports each of its three stages as a
     // "linking" stage without a total (its work is not known ahead), with the count of
     // candidate links examined, the links kept and, from the second stage on, an estimate
     // of the linking time left (`progress::LinkingEta`); the first stage has none, and each
@@ -686,16 +686,16 @@ fn linking_is_shown_stage_by_stage_with_the_links_kept() {
     let solved = solve_scene(&cornell_box(), &hierarchical(0.05), &recorder).unwrap();
     let events = recorder.events.into_inner().unwrap();
     let starts: Vec<&String> = events.iter().filter(|e| e.starts_with("start")).collect();
-    assert_eq!(starts.len(), 5, "{starts:?}");
+    assert_eq!(starts.len(), 3, "{starts:?}");
     assert!(starts.iter().all(|e| *e == "start linking 0"), "{starts:?}");
-    assert_eq!(events.iter().filter(|e| *e == "finish").count(), 5);
+    assert_eq!(events.iter().filter(|e| *e == "finish").count(), 3);
     let with_eta = |stage: usize| {
         events.iter().any(|e| {
-            e.starts_with(&format!("message stage {stage} of 5,")) && e.contains("linking eta ")
+            e.starts_with(&format!("message stage {stage} of 3,")) && e.contains("linking eta ")
         })
     };
     assert!(!with_eta(1), "an estimate in the first stage");
-    assert!((2..=5).all(with_eta), "{events:?}");
+    assert!((2..=3).all(with_eta), "{events:?}");
     for (i, e) in events.iter().enumerate() {
         if e == "finish" {
             assert!(events[i - 1].ends_with(" links kept"), "{}", events[i - 1]);
@@ -706,7 +706,7 @@ fn linking_is_shown_stage_by_stage_with_the_links_kept() {
         .rev()
         .find(|e| e.starts_with("message"))
         .unwrap();
-    assert!(last.contains("stage 5 of 5, ε 0.050"), "{last}");
+    assert!(last.contains("stage 3 of 3, ε 0.050"), "{last}");
     let links: usize = last
         .split(", ")
         .last()

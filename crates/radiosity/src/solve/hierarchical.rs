@@ -2,7 +2,7 @@
 //! again with the radiosities now known, until the links are right for the final tolerance.
 //!
 //! Multigridding after Hanrahan, Salzman & Aupperle (1991) and Sillion & Drettakis (1995):
-//! the link error threshold starts at 16 ε and halves each stage down to ε; each stage
+//! the link error threshold starts at 4 ε and halves each stage down to ε; each stage
 //! refines every link whose error in power exceeds the stage's threshold (with the
 //! radiosities of the previous stage, starting from B = E, so the first stage links from the
 //! emitters), then runs Jacobi with push–pull from the previous radiosities. The last stage
@@ -41,8 +41,19 @@ pub struct HierarchicalSolution {
     pub overfull: Vec<(String, usize)>,
 }
 
-/// Stages of the threshold schedule: 16 ε, 8 ε, 4 ε, 2 ε, ε.
-const STAGES: u32 = 5;
+/// Stages of the threshold schedule: 4 ε, 2 ε, ε. Every stage re-examines the links,
+/// rebuilds the leaf mesh and iterates, and the early stages' links mostly split again
+/// later. (Five before, from 16 ε. Measured 2026-12-07, alternated on this 2-core machine:
+/// the Cornell box's solve, median of 30, 0.174 against 0.189 s, 73,073 links against
+/// 72,898, its error against Mitsuba the same (mean 0.78 %, worst 1.82 %, the short block's
+/// side facing the green wall); the furnished room of 1000 objects at ε = 0.02 11.6–11.9
+/// against 12.5–12.6 s, 1,745 k links against 1,725 k, per object against its solve at
+/// ε = 0.005 (area-weighted mean, 95th percentile, worst) 0.366 / 0.974 / 5.64 % against
+/// 0.368 / 0.948 / 5.65 %; but the room of 10,000 objects 95.8 against 94.2 s (one run
+/// each) with 14.44 M links against 13.17 M and a peak of 1458 against 1403 MB. Two stages
+/// took the Cornell box to 0.168 s but its short block's front to 3.7 % against Mitsuba;
+/// 16 ε, 4 ε, ε gave 0.181 s and 1.85 %, and in the room of 10,000 objects 14.07 M links.)
+const STAGES: u32 = 3;
 
 /// The intermediate stages iterate to this many times the solver's tolerance (at most
 /// [`STAGE_TOLERANCE_CAP`]): their radiosities only set the next refinement's thresholds

@@ -41,7 +41,7 @@ use crate::accel::Visibility;
 use crate::coupling::closure::Enclosure;
 use crate::coupling::Coupling;
 use crate::formfactor::analytic_point::{lambert_vector, point_to_polygon, points_to_polygon};
-use crate::formfactor::kernel::{polygon_centroid, Kernel, Receiver, SourcePolygon};
+use crate::formfactor::kernel::{Kernel, Receiver, SourcePolygon};
 use crate::formfactor::quadrature::element_points;
 use crate::geometry::Polygon;
 use crate::mesh::{Element, Mesh, Patch, PatchId, SurfaceData};
@@ -546,10 +546,7 @@ impl Hierarchical {
             Kind::Cluster => n.child_count > 0,
             // Children have a quarter of its area, or half where it splits in two
             // ([`tree::split_polygon`]).
-            Kind::Polygon { .. } => {
-                let parts = tree::split_count(self.tree.polygon(node)) as f64;
-                n.area / parts >= self.min_area
-            }
+            Kind::Polygon { .. } => n.area / f64::from(n.parts) >= self.min_area,
         }
     }
 
@@ -1054,7 +1051,8 @@ impl Hierarchical {
         // that needs it, below).
         let polygon = self.tree.polygon(p);
         let mut points = Vec::with_capacity(order * order);
-        element_points(polygon, polygon_centroid(polygon), order, &mut points);
+        // The node's centre is this polygon's `polygon_centroid`, kept.
+        element_points(polygon, np.centre, order, &mut points);
         let source = self.source(q);
         let xs: SmallVec<[DVec3; 16]> = points.iter().map(|&(x, _)| x).collect();
         let mut values: PointValues = smallvec::smallvec![0.0; xs.len()];
@@ -2209,7 +2207,8 @@ fn first_moment(
     if count < 2 {
         return DVec3::ZERO;
     }
-    let centre = polygon_centroid(&source.vertices);
+    // The source's `polygon_centroid`, kept with it.
+    let centre = source.centre;
     let mut moment = DVec3::ZERO;
     for (k, ((_, w), f)) in points.iter().zip(values).enumerate() {
         if *f <= 0.0 {
