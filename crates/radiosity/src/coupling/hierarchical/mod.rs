@@ -1465,15 +1465,7 @@ impl Hierarchical {
         // shaft is walked. (Half the element-sized receivers' estimates in the furnished
         // rooms, each walking one before.)
         if factors.iter().all(|&f| f <= 0.0) {
-            return Estimate {
-                transfer: Some(Transfer::Uniform(0.0)),
-                delta: 0.0,
-                mean: 0.0,
-                source_dominates: false,
-                must_open_p: false,
-                must_open_q: false,
-                shaft: None,
-            };
+            return Estimate::zero();
         }
         let shaft = self.shaft(p, q, inherited);
         let rays = LinkRays::new(&shaft);
