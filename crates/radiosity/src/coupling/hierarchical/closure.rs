@@ -125,7 +125,7 @@ const CLOSED_OVERFULL: f64 = 2.0;
 
 /// The link's weight in the attribution: its form-factor uncertainty δ. (δ², which puts
 /// the deficit still more on the coarsest links, was not tried.)
-fn weight(l: &Link) -> f64 {
+fn weight(l: Link) -> f64 {
     f64::from(l.delta)
 }
 

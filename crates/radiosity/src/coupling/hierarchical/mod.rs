@@ -35,6 +35,7 @@
 //! display and exports use.
 
 mod closure;
+mod links;
 pub mod tree;
 
 use crate::accel::Visibility;
@@ -48,6 +49,7 @@ use crate::mesh::{Element, Mesh, Patch, PatchId, SurfaceData};
 use crate::scene::Scene;
 use closure::Balance;
 use glam::DVec3;
+use links::LinkList;
 use rayon::prelude::*;
 use smallvec::SmallVec;
 use std::collections::HashMap;
@@ -159,7 +161,7 @@ impl Transfer {
     }
 }
 
-/// A link p ← q, stored with its receiver.
+/// A link p ← q, stored with its receiver in the words its kind needs ([`LinkList`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Link {
     /// The source node.
@@ -217,18 +219,15 @@ const NODE_BYTES: u64 = (std::mem::size_of::<tree::Node>()
     + std::mem::size_of::<State>()
     + std::mem::size_of::<Pulled>()
     + std::mem::size_of::<Gathered>()
-    + std::mem::size_of::<Vec<Link>>()
+    + std::mem::size_of::<LinkList>()
     + std::mem::size_of::<OnceLock<Box<SourcePolygon>>>()
     + 4 * std::mem::size_of::<DVec3>()
     + std::mem::size_of::<Element>()
     + 4 * std::mem::size_of::<DVec3>()
     + 6 * std::mem::size_of::<[f64; 3]>()) as u64;
-/// Bytes per link, with a quarter more for the vectors' spare capacity (they grow by at most a
-/// quarter: [`extend_links`]).
-const LINK_BYTES: u64 = (std::mem::size_of::<Link>() * 5 / 4) as u64;
-// A link is ten 4-byte words: its source, its error coefficient and its transfer (the
-// largest, a polygon's, seven numbers and the kind).
-const _: () = assert!(std::mem::size_of::<Link>() == 40);
+/// Bytes per stored link word ([`links`]: 3 to 9 words a link), with a quarter more for the
+/// lists' spare capacity (they grow by at most a quarter: [`extend_links`]).
+const WORD_BYTES: u64 = 4 * 5 / 4;
 /// Allocator overhead per heap block, bytes (glibc's malloc: 16 on 64-bit targets).
 const BLOCK_BYTES: u64 = 16;
 
@@ -282,7 +281,7 @@ pub struct Hierarchical {
     /// A visibility query over an empty scene: the kernels' unoccluded values.
     open: Visibility,
     kernel: Box<dyn Kernel>,
-    links: Vec<Vec<Link>>,
+    links: Vec<LinkList>,
     state: Vec<State>,
     sources: Vec<OnceLock<Box<SourcePolygon>>>,
     /// Heap bytes of the sources made so far ([`source_heap_bytes`]).
@@ -472,7 +471,7 @@ impl Hierarchical {
     /// Keeps the per-node arrays as long as the arena.
     fn grow(&mut self) {
         let n = self.tree.nodes.len();
-        self.links.resize_with(n, Vec::new);
+        self.links.resize_with(n, LinkList::default);
         self.state.resize(n, State::default());
         self.sources.resize_with(n, OnceLock::new);
     }
@@ -483,7 +482,7 @@ impl Hierarchical {
     }
 
     /// The links of node `node` (as receiver).
-    pub fn links_of(&self, node: u32) -> &[Link] {
+    pub fn links_of(&self, node: u32) -> &LinkList {
         &self.links[node as usize]
     }
 
@@ -494,19 +493,24 @@ impl Hierarchical {
 
     /// Number of links.
     pub fn link_count(&self) -> usize {
-        self.links.iter().map(Vec::len).sum()
+        self.links.par_iter().map(LinkList::len).sum()
+    }
+
+    /// Words the links take ([`links`]).
+    fn link_words(&self) -> usize {
+        self.links.iter().map(LinkList::words).sum()
     }
 
     /// Bytes held by nodes and links (estimate).
     pub fn bytes(&self) -> u64 {
-        self.bytes_with(self.link_count())
+        self.bytes_with(self.link_words())
     }
 
-    /// [`Hierarchical::bytes`] with `links` links (counted by the caller: counting them
-    /// visits every node).
-    fn bytes_with(&self, links: usize) -> u64 {
+    /// [`Hierarchical::bytes`] with links of `words` words in all (counted by the caller:
+    /// counting them visits every node).
+    fn bytes_with(&self, words: usize) -> u64 {
         self.tree.nodes.len() as u64 * NODE_BYTES
-            + links as u64 * LINK_BYTES
+            + words as u64 * WORD_BYTES
             + self.source_bytes.load(Ordering::Relaxed)
     }
 
@@ -636,7 +640,7 @@ impl Hierarchical {
         // bytes per candidate instead of 72).
         let mut pending: Vec<Candidate> = Vec::new();
         let mut kept: Vec<Link> = Vec::new();
-        if self.link_count() == 0 {
+        if self.links.iter().all(LinkList::is_empty) {
             pending.push((0, 0, None));
         } else {
             for p in 0..self.links.len() {
@@ -657,6 +661,7 @@ impl Hierarchical {
         }
         let mut forced = 0;
         let mut link_count = self.link_count();
+        let mut link_words = self.link_words();
         let mut round = 0;
         while !pending.is_empty() {
             // The round's candidates are decided a chunk at a time, and only the splits are
@@ -670,7 +675,11 @@ impl Hierarchical {
                 .chunks(DECIDE_CHUNK)
                 .zip((0..).step_by(DECIDE_CHUNK))
             {
-                let at_cap = self.bytes_with(link_count) > self.options.memory_limit;
+                // Also short of the node count a link can name ([`links::MAX_NODES`]): a
+                // round makes at most four nodes per candidate it splits, and half the
+                // limit is left for that.
+                let at_cap = self.bytes_with(link_words) > self.options.memory_limit
+                    || self.tree.nodes.len() > links::MAX_NODES / 2;
                 self.capped |= at_cap;
                 let decisions: Vec<Decision> = chunk
                     .par_iter()
@@ -692,6 +701,7 @@ impl Hierarchical {
                         Decision::Accept(link, missed) => {
                             forced += usize::from(missed);
                             link_count += 1;
+                            link_words += links::words_of(&link.transfer);
                             let p = chunk[i].0;
                             if p != run_receiver {
                                 extend_links(&mut self.links, run_receiver, &mut run);
@@ -764,7 +774,7 @@ impl Hierarchical {
         self.links
             .par_iter_mut()
             .with_min_len(256)
-            .for_each(|l| l.sort_by_key(|l| l.source));
+            .for_each(LinkList::sort_by_source);
         self.forced = forced;
         self.form_factor_seconds += started.elapsed().as_secs_f64();
         self.tree.nodes.len() != leaves_before
@@ -1847,7 +1857,7 @@ impl Hierarchical {
     /// Links by kind: polygon, from cluster, to cluster, tensor, uniform.
     pub fn link_kinds(&self) -> [usize; 5] {
         let mut k = [0; 5];
-        for l in self.links.iter().flatten() {
+        for l in self.links.iter().flat_map(LinkList::iter) {
             k[match l.transfer {
                 Transfer::Polygon { .. } => 0,
                 Transfer::FromCluster(..) => 1,
@@ -2291,7 +2301,7 @@ type PointValues = SmallVec<[f64; 16]>;
 
 /// Appends the links `run` (emptied) to receiver `p`'s list (none when `p` is [`NONE`]),
 /// growing it at most once, by no more than the run or a quarter of what it holds (at least
-/// four), so that no list has more than a quarter spare (see [`LINK_BYTES`]), instead of
+/// four links' worth), so that no list has more than a quarter spare (see [`WORD_BYTES`]), instead of
 /// doubling it: the lists are most of the memory at the peak, which comes in the last
 /// iterations, and doubled they held 1.44 times their links in the room of 3000 objects.
 /// Measured peaks with doubling and with a quarter: rooms of 1000 and 3000 objects 247 → 228
@@ -2299,15 +2309,11 @@ type PointValues = SmallVec<[f64; 16]>;
 /// refinement instead raised the peak: the freed tails stay with the allocator.) One
 /// reservation per run of a receiver's links, not per link: the candidates come receiver by
 /// receiver.
-fn extend_links(links: &mut [Vec<Link>], p: u32, run: &mut SmallVec<[Link; 16]>) {
+fn extend_links(links: &mut [LinkList], p: u32, run: &mut SmallVec<[Link; 16]>) {
     if p == NONE || run.is_empty() {
         return;
     }
-    let list = &mut links[p as usize];
-    if list.capacity() - list.len() < run.len() {
-        list.reserve_exact(run.len().max(list.len() / 4).max(4));
-    }
-    list.extend(run.drain(..));
+    links[p as usize].extend_growing(run.drain(..));
 }
 
 /// Candidate links decided at once in a round of [`Hierarchical::refine_reporting`]: 3 MB
@@ -2484,7 +2490,7 @@ fn set_spread(tree: &Tree, leaves: &[u32], pulled: &[Pulled], state: &mut [State
 
 /// Gathers over `links` from `state` into `gathered` (one entry per node, its allocation
 /// reused).
-fn gather_into(links: &[Vec<Link>], state: &[Pulled], gathered: &mut Vec<Gathered>) {
+fn gather_into(links: &[LinkList], state: &[Pulled], gathered: &mut Vec<Gathered>) {
     links
         .par_iter()
         .map(|links| {
