@@ -106,7 +106,7 @@ pub fn run(args: CompareArgs) -> Result<()> {
     )?;
     comparison.write(&args.output)?;
     let table = comparison.table_markdown();
-    print!("{table}");
+    crate::write_stdout(&table)?;
     if !args.solve.quiet {
         eprintln!(
             "wrote {} (convergence.svg, convergence.png, table.md, comparison.json)",

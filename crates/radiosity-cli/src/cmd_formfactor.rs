@@ -87,7 +87,7 @@ pub fn run(args: FormfactorArgs) -> Result<()> {
         jitter: args.jitter,
     };
     if args.table {
-        print!("{}", to_markdown(&accuracy_table(&methods, &settings)));
+        crate::write_stdout(&to_markdown(&accuracy_table(&methods, &settings)))?;
         return Ok(());
     }
     let Some(path) = args.file else {
@@ -98,7 +98,7 @@ pub fn run(args: FormfactorArgs) -> Result<()> {
     let problem =
         PairProblem::from_json(&text).with_context(|| format!("loading {}", path.display()))?;
     for method in methods {
-        println!("{}", solve_pair(&problem, method, &settings).to_json_line());
+        crate::write_stdout(&(solve_pair(&problem, method, &settings).to_json_line() + "\n"))?;
     }
     Ok(())
 }

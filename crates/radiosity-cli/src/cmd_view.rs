@@ -34,7 +34,6 @@ use radiosity::progress::{ConvergenceEta, Progress};
 use radiosity::scene::Camera;
 use radiosity::settings::{CameraOverrides, Settings};
 use radiosity::solve::{display_radiosity, Flow, Observer, SolverKind, Step, StepKind};
-use std::io::Write;
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::{Duration, Instant};
@@ -129,10 +128,7 @@ pub fn run(args: ViewCmdArgs) -> Result<()> {
         },
     )?;
     let url = server.url();
-    {
-        let mut out = std::io::stdout().lock();
-        writeln!(out, "{url}").and_then(|()| out.flush())?;
-    }
+    crate::write_stdout(&format!("{url}\n"))?;
     let running = server.spawn()?;
     let stop = running.shutdown_handle();
     view::shutdown_on_signal(stop.clone())?;

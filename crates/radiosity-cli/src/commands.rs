@@ -259,7 +259,7 @@ fn solve(args: SolveCmdArgs) -> Result<()> {
     }
     if args.report.is_none() && args.save.is_none() && args.bake.is_none() {
         // Nothing asked to be written: print the report so the solve is not wasted.
-        println!("{}", serde_json::to_string_pretty(&report)?);
+        crate::write_stdout(&(serde_json::to_string_pretty(&report)? + "\n"))?;
     }
     Ok(())
 }

@@ -18,6 +18,21 @@ use clap::error::ErrorKind;
 use clap::Parser;
 use std::process::ExitCode;
 
+/// Writes `text` to standard output. A reader that has gone away (`radiosity solve | head
+/// -1`: a closed pipe) is not an error: the work goes on and its files are written, only
+/// the rest of the text is dropped (`println!` panicked there). Any other failure to write
+/// is returned, for the command to fail with it.
+pub(crate) fn write_stdout(text: &str) -> anyhow::Result<()> {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    match out.write_all(text.as_bytes()).and_then(|()| out.flush()) {
+        Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => {
+            Err(anyhow::Error::new(e).context("writing to standard output"))
+        }
+        _ => Ok(()),
+    }
+}
+
 fn main() -> ExitCode {
     let cli = match args::Cli::try_parse() {
         Ok(cli) => cli,

@@ -2,7 +2,7 @@
 //! message naming the culprit, a non-zero exit status, no panic, no output file left behind).
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::{Command, Output, Stdio};
 
 fn bin() -> Command {
     Command::new(env!("CARGO_BIN_EXE_radiosity"))
@@ -27,6 +27,25 @@ fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
     let p = dir.join(name);
     std::fs::write(&p, text).unwrap();
     p
+}
+
+/// A reader that goes away before the report is printed (`radiosity solve | head -1`) does
+/// not make the command fail or panic: the solve finishes and exits 0. (It panicked with
+/// exit status 101: `println!` on a closed pipe.) The read end is closed before the solve
+/// can have written anything, so the write meets the closed pipe every time.
+#[test]
+fn a_reader_that_goes_away_is_not_a_panic() {
+    let mut child = bin()
+        .args(["solve", "--elements", "300", "--quiet"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("run radiosity");
+    drop(child.stdout.take());
+    let o = child.wait_with_output().expect("wait for radiosity");
+    let err = stderr(&o);
+    assert!(o.status.success(), "exit {:?}; stderr: {err}", o.status);
+    assert!(!err.contains("panicked"), "panic: {err}");
 }
 
 /// Asserts a clean failure: non-zero exit, no panic, the message mentions every `needles`.
