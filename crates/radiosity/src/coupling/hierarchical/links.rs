@@ -21,8 +21,9 @@ const KIND_BITS: u32 = 3;
 /// Where the kind starts in the first word.
 const KIND_SHIFT: u32 = 32 - KIND_BITS;
 /// Node indices must stay below this to be stored as a link's source: the refinement
-/// splits no node once the arena holds this many ([`super::Hierarchical::refine_reporting`];
-/// at the estimate's 1 kB a node that is 512 GiB of nodes, far past any memory limit).
+/// splits no node once the arena holds a fifth of this
+/// ([`super::Hierarchical::refine_reporting`]; at the estimate's 1 kB a node, a fifth is
+/// 100 GiB of nodes, past any memory limit the hierarchy runs under here).
 pub(super) const MAX_NODES: usize = 1 << KIND_SHIFT;
 
 const POLYGON: u32 = 0;

@@ -676,10 +676,10 @@ impl Hierarchical {
                 .zip((0..).step_by(DECIDE_CHUNK))
             {
                 // Also short of the node count a link can name ([`links::MAX_NODES`]): a
-                // round makes at most four nodes per candidate it splits, and half the
-                // limit is left for that.
+                // round splits each node at most once, into at most four, so it at most
+                // quintuples the arena (which grows only between rounds).
                 let at_cap = self.bytes_with(link_words) > self.options.memory_limit
-                    || self.tree.nodes.len() > links::MAX_NODES / 2;
+                    || self.tree.nodes.len() > links::MAX_NODES / 5;
                 self.capped |= at_cap;
                 let decisions: Vec<Decision> = chunk
                     .par_iter()
