@@ -108,7 +108,7 @@ pub fn run(args: CompareArgs) -> Result<()> {
     let table = comparison.table_markdown();
     crate::write_stdout(&table)?;
     if !args.solve.quiet {
-        eprintln!(
+        stderr_line!(
             "wrote {} (convergence.svg, convergence.png, table.md, comparison.json)",
             args.output.display()
         );

@@ -115,7 +115,7 @@ pub fn render(
         .map_err(anyhow::Error::msg)
         .with_context(|| format!("writing {}", output.display()))?;
     if !quiet {
-        eprintln!(
+        stderr_line!(
             "wrote {} ({w}×{h}, false colour {} 0–{} {})",
             output.display(),
             match quantity {

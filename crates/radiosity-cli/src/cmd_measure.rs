@@ -97,7 +97,7 @@ pub fn run(args: MeasureArgs) -> Result<()> {
         falsecolour::write_png(&image, &png).map_err(anyhow::Error::msg)?;
         if !args.solve.quiet {
             let s = &grid.stats;
-            eprintln!(
+            stderr_line!(
                 "{name} over '{}' at {} m: {} points, Ē = {:.1} lx, Emin = {:.1} lx, Emax = {:.1} lx, U0 = {:.3}, Emin/Emax = {:.3} -> {}, {}",
                 grid.layout.surface,
                 spec.height,
@@ -145,7 +145,7 @@ pub fn run(args: MeasureArgs) -> Result<()> {
     })
     .with_context(|| format!("writing {}", args.output.display()))?;
     if !args.solve.quiet {
-        eprintln!("wrote {}", args.output.display());
+        stderr_line!("wrote {}", args.output.display());
     }
     Ok(())
 }

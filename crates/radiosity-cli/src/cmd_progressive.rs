@@ -94,7 +94,7 @@ pub fn run(args: ProgressiveArgs) -> Result<()> {
             } else {
                 String::new()
             };
-            eprintln!(
+            stderr_line!(
                 "frame {:>5}: {} shots, unshot {}, {} elements, {:.2} s{converged} → {}",
                 r.requested,
                 r.shots,
@@ -110,7 +110,7 @@ pub fn run(args: ProgressiveArgs) -> Result<()> {
     let sheet = sequence::contact_sheet(&tiles, exposure)?;
     sequence::write_png(&sheet, &sheet_path)?;
     if !quiet {
-        eprintln!(
+        stderr_line!(
             "wrote {} frames ({}×{}) and the contact sheet {}",
             result.frames.len(),
             settings.render.width,

@@ -133,11 +133,11 @@ pub fn run(args: ViewCmdArgs) -> Result<()> {
     let stop = running.shutdown_handle();
     view::shutdown_on_signal(stop.clone())?;
     if !quiet {
-        eprintln!("viewer at {url} (Ctrl-C stops it)");
+        stderr_line!("viewer at {url} (Ctrl-C stops it)");
     }
     if args.open {
         if let Err(e) = view::open_in_browser(&url) {
-            eprintln!("warning: {e}");
+            stderr_line!("warning: {e}");
         }
     }
 
@@ -151,7 +151,7 @@ pub fn run(args: ViewCmdArgs) -> Result<()> {
                 return Err(e);
             }
             if !quiet {
-                eprintln!(
+                stderr_line!(
                     "showing the saved solution {} ({} elements)",
                     path.display(),
                     file.elements.len()
@@ -193,7 +193,7 @@ pub fn run(args: ViewCmdArgs) -> Result<()> {
         Some(e) => Err(e),
         None => {
             if !quiet {
-                eprintln!("viewer stopped");
+                stderr_line!("viewer stopped");
             }
             Ok(())
         }
@@ -343,7 +343,7 @@ impl Live {
             Outcome::Stopped(format!("stopped before converging: {summary}"))
         });
         if !self.quiet {
-            eprintln!(
+            stderr_line!(
                 "solved '{}': {} elements, {} solver: {summary}, {} in {:.2} s; {} frames shown",
                 scene.name,
                 solved.mesh.len(),

@@ -88,7 +88,7 @@ pub(crate) fn load_scene(path: Option<&Path>, solve: &SolveArgs) -> Result<Loade
         radiosity::diagnose::SOLVER_USES_LIGHTS,
     ));
     for warning in &loaded.warnings {
-        eprintln!("warning: {warning}");
+        stderr_line!("warning: {warning}");
     }
     Ok(loaded)
 }
@@ -158,7 +158,7 @@ pub(crate) fn run_solve(scene: &Scene, settings: &Settings, args: &SolveArgs) ->
                 st.iterations, st.residual
             )
         };
-        eprintln!(
+        stderr_line!(
             "solved '{}': {} elements, {} patches, {} solver with {} form factors: {what} in {:.2} s ({:.2} s form factors)",
             scene.name,
             solved.mesh.len(),
@@ -169,7 +169,7 @@ pub(crate) fn run_solve(scene: &Scene, settings: &Settings, args: &SolveArgs) ->
             st.form_factor_seconds,
         );
         if let Some(h) = &solved.hierarchy {
-            eprintln!(
+            stderr_line!(
                 "hierarchy: {} links, {} nodes, about {:.0} MiB, link tolerance ε {}",
                 h.links,
                 h.nodes,
@@ -177,7 +177,7 @@ pub(crate) fn run_solve(scene: &Scene, settings: &Settings, args: &SolveArgs) ->
                 h.epsilon
             );
             for warning in h.warnings() {
-                eprintln!("warning: {warning}");
+                stderr_line!("warning: {warning}");
             }
         }
     }
@@ -221,7 +221,7 @@ fn solve(args: SolveCmdArgs) -> Result<()> {
     if !args.solve.quiet {
         let t = &report.totals;
         let fmt = |p: [f64; 3]| format!("({:.4}, {:.4}, {:.4}) W", p[0], p[1], p[2]);
-        eprintln!(
+        stderr_line!(
             "power: emitted {}, absorbed {}, escaped {}, unshot {}",
             fmt(t.emitted_power),
             fmt(t.absorbed_power),
@@ -245,7 +245,7 @@ fn solve(args: SolveCmdArgs) -> Result<()> {
         let summary = radiosity::export::export(&baked, path, options)
             .with_context(|| format!("baking {}", path.display()))?;
         if !args.solve.quiet {
-            eprintln!(
+            stderr_line!(
                 "wrote {} ({} charts in a {}×{} lightmap, {:.0} texels/m) with {} and {}",
                 summary.glb.display(),
                 summary.charts,
@@ -360,7 +360,7 @@ fn render(args: RenderArgs) -> Result<()> {
         .write(&output, settings.render.exposure as f32)
         .with_context(|| format!("writing {}", output.display()))?;
     if !args.solve.quiet {
-        eprintln!(
+        stderr_line!(
             "wrote {} ({}×{})",
             output.display(),
             settings.render.width,

@@ -1,6 +1,17 @@
 //! `radiosity`: the command-line face of the radiosity engine. Thin on purpose: argument
 //! parsing, progress bars and error reporting; all the work is in the library.
 
+/// `eprintln!` that does not panic when standard error is gone (`radiosity solve 2>&1 | head
+/// -1`: a closed pipe): the message is dropped and the work goes on, its files written
+/// (`eprintln!` panicked there, before the report was written). Defined before the modules
+/// so that they all see it.
+macro_rules! stderr_line {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stderr(), $($arg)*);
+    }};
+}
+
 mod args;
 mod cmd_compare;
 mod cmd_falsecolour;
@@ -52,21 +63,21 @@ fn main() -> ExitCode {
     interrupt::remove_temporaries_on_signal();
     if let Some(n) = cli.threads {
         if !(1..=MAX_THREADS).contains(&n) {
-            eprintln!("error: --threads must be a whole number from 1 to {MAX_THREADS}, got {n}");
+            stderr_line!("error: --threads must be a whole number from 1 to {MAX_THREADS}, got {n}");
             return ExitCode::FAILURE;
         }
         if let Err(e) = rayon::ThreadPoolBuilder::new()
             .num_threads(n)
             .build_global()
         {
-            eprintln!("error: --threads: {e}");
+            stderr_line!("error: --threads: {e}");
             return ExitCode::FAILURE;
         }
     }
     match commands::run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {}", message(&e));
+            stderr_line!("error: {}", message(&e));
             ExitCode::FAILURE
         }
     }

@@ -124,7 +124,7 @@ impl Progress for Bars {
             if let Some(s) = slot.take() {
                 s.bar.finish_and_clear();
                 let message = s.bar.message();
-                eprintln!(
+                stderr_line!(
                     "{:>14}: {} in {:.2} s{}",
                     s.name,
                     s.bar.position(),

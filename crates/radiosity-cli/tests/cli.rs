@@ -48,6 +48,27 @@ fn a_reader_that_goes_away_is_not_a_panic() {
     assert!(!err.contains("panicked"), "panic: {err}");
 }
 
+/// The same with standard error gone (`radiosity solve --report r.json 2>&1 | head -1`): the
+/// summary and warnings are dropped, the report is written and the command exits 0. (The
+/// summary's `eprintln!` panicked, exit status 101, before the report was written.)
+#[test]
+fn a_closed_standard_error_still_writes_the_report() {
+    let dir = tmp();
+    let report = dir.path().join("r.json");
+    let mut child = bin()
+        .args(["solve", "--elements", "300", "--report"])
+        .arg(&report)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("run radiosity");
+    drop(child.stderr.take());
+    let status = child.wait().expect("wait for radiosity");
+    assert!(status.success(), "exit {status:?}");
+    let text = std::fs::read_to_string(&report).expect("the report is written");
+    assert!(text.contains("\"objects\""), "{text}");
+}
+
 /// Asserts a clean failure: non-zero exit, no panic, the message mentions every `needles`.
 fn assert_fails_cleanly(o: &Output, needles: &[&str]) {
     let err = stderr(o);
