@@ -63,7 +63,9 @@ fn main() -> ExitCode {
     interrupt::remove_temporaries_on_signal();
     if let Some(n) = cli.threads {
         if !(1..=MAX_THREADS).contains(&n) {
-            stderr_line!("error: --threads must be a whole number from 1 to {MAX_THREADS}, got {n}");
+            stderr_line!(
+                "error: --threads must be a whole number from 1 to {MAX_THREADS}, got {n}"
+            );
             return ExitCode::FAILURE;
         }
         if let Err(e) = rayon::ThreadPoolBuilder::new()

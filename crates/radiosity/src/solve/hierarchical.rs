@@ -213,8 +213,8 @@ pub fn solve(
         capped: h.capped,
         forced: h.forced,
         overfull: h.overfull_objects(),
-        mesh: h.mesh().clone(),
         solution,
+        mesh: h.into_mesh(),
     })
 }
 

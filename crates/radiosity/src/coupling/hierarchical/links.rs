@@ -120,6 +120,24 @@ impl LinkList {
         self.words.len()
     }
 
+    /// Up to `count` links from word `from` on (a link boundary: 0, or what the previous
+    /// call returned), and the word after the last of them.
+    pub fn read(&self, from: usize, count: usize) -> (Vec<Link>, usize) {
+        let mut at = from;
+        let mut out = Vec::with_capacity(count);
+        while out.len() < count && at < self.words.len() {
+            let (link, n) = decode(&self.words[at..]);
+            out.push(link);
+            at += n;
+        }
+        (out, at)
+    }
+
+    /// Gives back the spare capacity.
+    pub fn shrink_to_fit(&mut self) {
+        self.words.shrink_to_fit();
+    }
+
     /// Keeps the links for which `keep` is true, in order, in place.
     pub fn retain(&mut self, mut keep: impl FnMut(&Link) -> bool) {
         let (mut read, mut write) = (0, 0);
@@ -318,6 +336,12 @@ mod tests {
         let from3: Vec<Link> = list.iter().filter(|l| l.source == 3).collect();
         assert!(matches!(from3[0].transfer, Transfer::Uniform(_)));
         assert!(matches!(from3[1].transfer, Transfer::Tensor(..)));
+        // Read back in pieces from where the last piece ended.
+        let (first, at) = list.read(0, 2);
+        let (rest, end) = list.read(at, 10);
+        assert_eq!([first, rest].concat(), list.iter().collect::<Vec<_>>());
+        assert_eq!(end, list.words());
+        assert!(list.read(end, 3).0.is_empty());
         list.retain(|_| false);
         assert!(list.is_empty());
         assert_eq!(list.len(), 0);

@@ -637,9 +637,10 @@ impl Hierarchical {
         // the Cornell box and the furnished rooms, for the same links.)
         // The first round's links kept from before, parallel to its candidates (held apart
         // from the candidates, so that the later rounds' carry no empty slot for them: 24
-        // bytes per candidate instead of 72).
+        // bytes per candidate instead of 72), stored as the links are ([`LinkList`]: about
+        // half the 40 bytes a `Link` takes) and read back a chunk at a time.
         let mut pending: Vec<Candidate> = Vec::new();
-        let mut kept: Vec<Link> = Vec::new();
+        let mut kept = LinkList::default();
         if self.links.iter().all(LinkList::is_empty) {
             pending.push((0, 0, None));
         } else {
@@ -652,13 +653,17 @@ impl Hierarchical {
                     let keep = self.within(l, &tol);
                     if !keep {
                         pending.push((p as u32, l.source, None));
-                        kept.push(*l);
+                        kept.push(l);
                     }
                     keep
                 });
                 self.links[p] = links;
             }
+            // Grown by doubling: up to half of each was spare.
+            pending.shrink_to_fit();
+            kept.shrink_to_fit();
         }
+        let mut kept_at = 0;
         let mut forced = 0;
         let mut link_count = self.link_count();
         let mut link_words = self.link_words();
@@ -681,12 +686,14 @@ impl Hierarchical {
                 let at_cap = self.bytes_with(link_words) > self.options.memory_limit
                     || self.tree.nodes.len() > links::MAX_NODES / 5;
                 self.capped |= at_cap;
+                let (kept_chunk, next_at) = kept.read(kept_at, chunk.len());
+                kept_at = next_at;
                 let decisions: Vec<Decision> = chunk
                     .par_iter()
                     .enumerate()
                     .map(|(i, (p, q, inherited))| {
                         let tolerance = self.tolerance(*p, epsilon);
-                        let kept = kept.get(start + i);
+                        let kept = kept_chunk.get(i);
                         self.decide(*p, *q, kept, inherited.as_ref(), tolerance, at_cap)
                     })
                     .collect();
@@ -720,7 +727,7 @@ impl Hierarchical {
                     links: link_count,
                 });
             }
-            kept = Vec::new();
+            kept = LinkList::default();
             let mut split: Vec<u32> = splits.iter().map(|&(_, n, _)| n).collect();
             split.sort_unstable();
             split.dedup();
@@ -734,7 +741,21 @@ impl Hierarchical {
                 self.tree.attach(n, pieces);
             }
             self.grow();
-            let mut next = Vec::new();
+            // Sized first: grown by doubling, up to half of the next round's candidates was
+            // spare, the refinement's largest vector.
+            let children = |n: u32| self.tree.nodes[n as usize].child_count as usize;
+            let size: usize = splits
+                .iter()
+                .map(|&(i, n, _)| {
+                    let (p, q, _) = pending[i as usize];
+                    if p == q {
+                        children(n) * children(n)
+                    } else {
+                        children(n)
+                    }
+                })
+                .sum();
+            let mut next = Vec::with_capacity(size);
             for (i, n, shaft) in splits {
                 let (p, q, _) = pending[i as usize];
                 let inherited = shaft.map(|shaft| Inherited {
@@ -1771,6 +1792,11 @@ impl Hierarchical {
     /// input polygon, vertices welded per polygon (children share their parents' exact edge
     /// midpoints), with the light sources' direct irradiance on every leaf.
     fn rebuild_mesh(&mut self, objects: &[String], scene: &Scene, balance: Balance) {
+        // The old mesh and closure go first: nothing below reads them, and held while the
+        // new ones are built they were the peak of the room of 10⁵ objects (its leaf mesh
+        // alone about 1 GiB).
+        self.mesh = Mesh::default();
+        self.closure = closure::Closure::default();
         let mut mesh = Mesh {
             objects: objects.to_vec(),
             ..Mesh::default()
@@ -1887,6 +1913,12 @@ impl Hierarchical {
     /// Counts of nodes and leaves.
     pub fn node_count(&self) -> usize {
         self.tree.nodes.len()
+    }
+
+    /// The leaf mesh, the hierarchy given up (a copy held beside the hierarchy while it is
+    /// dropped would be the solve's peak).
+    pub fn into_mesh(self) -> Mesh {
+        self.mesh
     }
 }
 
