@@ -232,7 +232,7 @@ impl Closure {
         // No links yet (the hierarchy as built, before its first refinement): nothing to
         // balance, and a gather now would only fill the scratch vectors (0.5 kB per node)
         // that the refinement releases.
-        if leaves == 0 || h.link_count() == 0 {
+        if leaves == 0 || h.links.iter().all(super::links::LinkList::is_empty) {
             return Self::default();
         }
         if enclosure == Enclosure::Open {
