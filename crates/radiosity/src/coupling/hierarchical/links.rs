@@ -133,11 +133,6 @@ impl LinkList {
         (out, at)
     }
 
-    /// Gives back the spare capacity.
-    pub fn shrink_to_fit(&mut self) {
-        self.words.shrink_to_fit();
-    }
-
     /// Keeps the links for which `keep` is true, in order, in place.
     pub fn retain(&mut self, mut keep: impl FnMut(&Link) -> bool) {
         let (mut read, mut write) = (0, 0);
@@ -155,10 +150,11 @@ impl LinkList {
     /// Orders the links by source node, keeping the order of links from one source (a
     /// stable sort).
     pub fn sort_by_source(&mut self) {
-        let mut links: Vec<Link> = self.iter().collect();
-        if links.windows(2).all(|w| w[0].source <= w[1].source) {
+        // Most lists are sorted already: checked without decoding them into a vector.
+        if self.iter().map(|l| l.source).is_sorted() {
             return;
         }
+        let mut links: Vec<Link> = self.iter().collect();
         links.sort_by_key(|l| l.source);
         self.words.clear();
         for link in &links {
