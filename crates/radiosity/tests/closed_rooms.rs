@@ -359,21 +359,27 @@ fn no_light_reaches_the_floor_under_a_box_or_leaves_a_furnished_room() {
 #[test]
 fn a_furnished_room_of_the_scale_benchmark_keeps_its_light() {
     // The scale benchmark's closed room of 30 pieces of furniture at the default ε. In such
-    // rooms the joint balance of rows and columns (`coupling/hierarchical/closure.rs`) can
-    // ask for corrections larger than the links, and then only rows are closed: what escapes
-    // is the reciprocity error the links leave. 1.1 % escaped when a floor piece beside a
-    // wall could be linked to the whole wall through points that all missed the bright
-    // strip above it; 4.2e-4 now (4.9e-4 before links were settled by the quick visibility
-    // pass, 6.7e-4 with 4 × 4 receiver points out to half a diameter, 1.3e-3 with 2 × 2
-    // ones in to one diameter; 0.4 % at 100 and 300 objects); bound 1e-3.
+    // rooms the joint balance of rows and columns (`coupling/hierarchical/closure.rs`) asks
+    // a few leaves for corrections larger than their links, and those are held to a bound
+    // while the rest are balanced: what escapes is what the held leaves leave open.
+    // Measured 0.6e-5 to 1.5e-5 by channel; bound 1e-4, the energy balance. (While the whole balance was
+    // given up for the rows alone whenever one leaf went beyond: 4.2e-4 here, 1.6e-3 to
+    // 2.2e-3 by channel once receivers' corners were looked at, 0.4 % at 100 and 300
+    // objects; 1.1 % when a floor piece beside a wall could be linked to the whole wall
+    // through points that all missed the bright strip above it.)
     let scene = radiosity::generate::furnished_room(30, 1);
     let default_tolerance = SolveOptions::default().tolerance;
     let solved = solve(&scene, 2000, SolverKind::Hierarchical, default_tolerance);
     let report = Report::new("room", &solved.mesh, &solved.solution, "raycast");
     let t = &report.totals;
-    let escaped = t.escaped_power[1] / t.emitted_power[1];
-    eprintln!("{escaped:.2e} of the power escaped");
-    assert!(escaped.abs() < 1e-3, "{escaped:.2e} of the power escaped");
+    for c in 0..3 {
+        let escaped = t.escaped_power[c] / t.emitted_power[c];
+        eprintln!("channel {c}: {escaped:.2e} of the power escaped");
+        assert!(
+            escaped.abs() < 1e-4,
+            "channel {c}: {escaped:.2e} of the power escaped"
+        );
+    }
 }
 
 #[test]

@@ -1179,7 +1179,49 @@ impl Hierarchical {
             .map(|&(v, _)| v)
             .collect()
         };
-        let (delta, v, occluded) = assess(&seen);
+        let (mut delta, v, occluded) = assess(&seen);
+        // Where every point agrees (all see the whole source, or none sees any of it), a
+        // shadow's edge may still cross the receiver between them, in the wide border that
+        // 2 × 2 points leave (two thirds of its area lies outside their square): its corners
+        // are looked at too ([`Hierarchical::corner_visible`]), and where one of them sees
+        // otherwise, the visibility over points and corners together gives the link its
+        // partial-visibility error, and the receiver is the end that opens. (A floor piece
+        // of 150 × 150 mm behind the Cornell box's tall block had its four points in the
+        // umbra and gathered nothing, where its front edge is lit: the floor behind the
+        // block read 11 % low in direct light at every ε, the block's back 0.8 % low.) The
+        // transfer keeps the points' quadrature. A link that splits anyway is not looked at
+        // again: the corners could only add to its error. Denser receivers (3 × 3 and 4 × 4
+        // points) reach nearer their edges and are not: looking at their corners as well
+        // changed no error on the Cornell box by more than 0.02 % and made 0.2 % more links.
+        // (Measured there: the floor's direct light leaf by leaf against a brute-force
+        // integral, mean absolute difference 1.45 % of the mean before, 0.78 % now,
+        // `direct_light_on_the_cornell_floor_matches_a_brute_force_integral`; 9 % more links
+        // at the default ε, about 10 % more time.)
+        let agreed = seen.iter().all(|&s| s == seen[0]) && (seen[0] == 0.0 || seen[0] == 1.0);
+        let splits_anyway = refuse_above.is_some_and(|threshold| {
+            (self.receiver_splits(p, q) || self.divisible(q))
+                && (0..3).any(|c| delta * sq.b_max[c] + open * v * sq.spread[c] > threshold[c])
+        });
+        let mut corners_differ = false;
+        if order == 2 && shaft != Shaft::Clear && agreed && !splits_anyway {
+            let rays = LinkRays::new(&shaft);
+            let (mut sum, mut count) = (0.0, 0usize);
+            for (k, (&x, &f)) in corners.iter().zip(&exact).enumerate() {
+                if f <= 0.0 {
+                    continue;
+                }
+                if let Some(v) = self.corner_visible(x, np.axis, source, &rays, k as u64) {
+                    sum += v;
+                    count += 1;
+                }
+            }
+            if sum != seen[0] * count as f64 {
+                let n = seen.len() as f64;
+                let v_all = (n * seen[0] + sum) / (n + count as f64);
+                delta += unoccluded * 2.0 * v_all.min(1.0 - v_all);
+                corners_differ = true;
+            }
+        }
         let f = open * v;
         let gradient_seen = if seen.iter().all(|&s| s == 1.0) {
             gradient
@@ -1196,7 +1238,7 @@ impl Hierarchical {
             delta,
             mean: f,
             source_dominates: false,
-            must_open_p: false,
+            must_open_p: corners_differ && self.receiver_splits(p, q),
             must_open_q: false,
             shaft: Some(shared(shaft)),
         }
@@ -1338,6 +1380,47 @@ impl Hierarchical {
         let point = [(x, 1.0)];
         let weights = kernel_weights(&point, n, source);
         self.visible_fractions(&point, n, source, &weights, rays, QuickPass::Salted(salt))[0].0
+    }
+
+    /// The fraction of `source` that a receiver's corner `x` (normal `n`) sees, from one ray
+    /// into each run of a quarter of its sub-areas (aimed as the quick pass of
+    /// [`Hierarchical::visible_fractions`] aims, by `salt`), each weighted by its point kernel;
+    /// `None` where none of those faces the corner. Only whether the corner sees otherwise
+    /// than the receiver's points is asked of it, and only the aimed sub-areas' kernels are
+    /// evaluated.
+    fn corner_visible(
+        &self,
+        x: DVec3,
+        n: DVec3,
+        source: &SourcePolygon,
+        rays: &LinkRays,
+        salt: u64,
+    ) -> Option<f64> {
+        let count = source.sub_points.len();
+        let stride = (count / 4).max(1);
+        let (mut seen, mut all) = (0.0, 0.0);
+        for run in 0..count.div_ceil(stride) {
+            let offset = if stride == 1 {
+                0
+            } else {
+                (mix(salt, 0, run as u64) % stride as u64) as usize
+            };
+            let j = (run * stride + offset).min(count - 1);
+            let y = source.sub_points[j];
+            let d = y - x;
+            let r2 = d.length_squared();
+            let weight =
+                n.dot(d).max(0.0) * source.normal.dot(-d).max(0.0) * source.sub_area_sizes[j]
+                    / (r2 * r2);
+            if weight.is_nan() || weight <= 0.0 {
+                continue;
+            }
+            all += weight;
+            if self.visible(rays, x, n, y, source.normal) {
+                seen += weight;
+            }
+        }
+        (all > 0.0).then(|| seen / all)
     }
 
     /// Whether nothing blocks the segment from `x` (normal `nx`) to `y` (normal `ny`), with
