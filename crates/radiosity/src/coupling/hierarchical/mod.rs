@@ -1205,19 +1205,24 @@ impl Hierarchical {
         let mut corners_differ = false;
         if order == 2 && shaft != Shaft::Clear && agreed && !splits_anyway {
             let rays = LinkRays::new(&shaft);
-            let (mut sum, mut count) = (0.0, 0usize);
+            // Each corner counts as a point, weighted by its own unoccluded form factor
+            // relative to the points' mean: a corner that barely sees the source (grazing,
+            // in the source's plane) cannot make the link uncertain.
+            let (mut seen_weight, mut weight, mut differ) = (0.0, 0.0, false);
             for (k, (&x, &f)) in corners.iter().zip(&exact).enumerate() {
                 if f <= 0.0 {
                     continue;
                 }
                 if let Some(v) = self.corner_visible(x, np.axis, source, &rays, k as u64) {
-                    sum += v;
-                    count += 1;
+                    let w = f / unoccluded;
+                    seen_weight += w * v;
+                    weight += w;
+                    differ |= v != seen[0];
                 }
             }
-            if sum != seen[0] * count as f64 {
+            if differ {
                 let n = seen.len() as f64;
-                let v_all = (n * seen[0] + sum) / (n + count as f64);
+                let v_all = (n * seen[0] + seen_weight) / (n + weight);
                 delta += unoccluded * 2.0 * v_all.min(1.0 - v_all);
                 corners_differ = true;
             }
