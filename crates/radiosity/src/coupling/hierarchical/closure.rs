@@ -31,8 +31,10 @@
 //! gradients ([`Closure::solve`]); both sets of targets have the same total, Σ A_p T_p. The column sums C_i of the links need the transpose of
 //! pull–gather–push, computed once per mesh ([`columns`]).
 //!
-//! Corrections larger than [`MAX_CORRECTION`] of the target are refused (a sum that far
-//! off is geometry, not link error), and no leaf's irradiance is let below zero.
+//! A row whose links' sum is more than [`MAX_CORRECTION`] below 1 keeps its sum as its
+//! target (a sum that far off is taken for geometry, not link error); a leaf whose part of
+//! the joint balance would exceed [`MAX_PART`] (of the closed row, 1, or of its area) is
+//! held to it while the rest are balanced; and no leaf's irradiance is let below zero.
 
 use super::tree::NONE;
 use super::{Hierarchical, Link, Pulled, Transfer};
@@ -45,8 +47,9 @@ use rayon::prelude::*;
 /// than link error (a surface seen from behind, a floor under a box).
 const MAX_CORRECTION: f64 = 0.25;
 
-/// The largest row or column part of the joint balance, relative to its target: a leaf's
-/// part beyond it is held to it (see [`Closure::solve`]).
+/// The largest part of the joint balance a leaf takes, as a fraction of the closed row (1)
+/// for its row part and of its area for its column part: a part beyond it is held to it
+/// (see [`Closure::solve`]).
 const MAX_PART: f64 = 1.0;
 
 /// Conjugate-gradient iterations stop when the residual is below this, relative to the
@@ -67,9 +70,9 @@ const MAX_ITERATIONS: usize = 200;
 /// In the closed scenes of the tests and the furnished room of 1000 objects every balance
 /// that converged reached 1e-12 in 7 to 17 iterations, never without halving over 20; each
 /// one that did not came after a solver's first stage (links from the emitters only), kept
-/// its residual between 0.5 and 10⁴ times the right-hand side's, and was then rejected as
-/// not sane (the room of 1000: 200 iterations, 1.8 s of a 20.7 s solve, for nothing; a
-/// closed room of the tests: 73).
+/// its residual between 0.5 and 10⁴ times the right-hand side's, and was then rejected (as
+/// not sane then, as [`UNCONVERGED`] now; the room of 1000: 200 iterations, 1.8 s of a
+/// 20.7 s solve, for nothing; a closed room of the tests: 73).
 const STALL_WINDOW: usize = 20;
 
 /// Fixed receiver ranges of [`row_transpose`]'s parallel scatter (independent of the
@@ -208,8 +211,8 @@ impl BalanceInputs {
     }
 }
 
-/// A joint balance whose conjugate gradients stalled ([`STALL_WINDOW`]) after this many
-/// iterations.
+/// A joint balance whose conjugate gradients stalled ([`STALL_WINDOW`]) or stopped
+/// unconverged ([`UNCONVERGED`]) after this many iterations.
 #[derive(Debug)]
 struct Stalled(#[cfg_attr(not(test), allow(dead_code))] usize);
 
@@ -249,7 +252,8 @@ impl Closure {
         let inputs = BalanceInputs::new(h);
         match Self::solve(h, &inputs) {
             Ok(both) => both,
-            // A balance whose conjugate gradients stalled ([`STALL_WINDOW`]) is no balance.
+            // A balance whose conjugate gradients stalled ([`STALL_WINDOW`]) or stopped
+            // unconverged ([`UNCONVERGED`]) is no balance: the rows alone are closed.
             Err(Stalled(_)) => Self::rows(&inputs.rows),
         }
     }
@@ -388,7 +392,11 @@ impl Closure {
         // A balance that neither converged nor stalled (the iteration cap, or a direction of
         // no curvature) is no balance either (when the bounds below gave the whole balance
         // up, such answers were rejected by them).
-        if residuals[iterations] > UNCONVERGED * scale {
+        let residual = residuals[iterations];
+        if residual.is_nan()
+            || residual > UNCONVERGED * scale
+            || !kappa.iter().all(|k| k.is_finite())
+        {
             return Err(Stalled(iterations));
         }
         // Rows and columns together can ask for corrections far beyond the links' errors
@@ -403,12 +411,15 @@ impl Closure {
         // the furnished room of 30 objects at the default ε) then leave their own sums open;
         // the rest are balanced, and 1.0e-5 of that room's light escapes. (The whole balance
         // was given up for rows alone when any leaf went beyond, which does not conserve
-        // power: 1.6e-3 to 2.2e-3 of the same room's light escaped by channel, 4e-3 of the
-        // room of 100 objects', 0.4–0.5 % of the rooms of 1000 and 10,000 objects' at
-        // ε = 0.02 and 2 % of the room of 10⁵ objects'. Solving again without the leaves
+        // power: with the receivers' corners looked at, 1.6e-3 to 2.2e-3 of the same room's
+        // light escaped by channel and 4e-3 of the room of 100 objects'; before that, 3e-5 to
+        // 6.5e-4 and 1.7e-3 to 2.5e-3, and 0.4–0.5 % of the rooms of 1000 and 10,000
+        // objects' at ε = 0.02. Solving again without the leaves
         // beyond, up to three times, let 14 % escape from the room of 30 objects.) A row
         // still beyond CLOSED_OVERFULL (copies of one surface, which the links count in
-        // full) is scaled ([`overfull_scale`]) instead.
+        // full) is scaled ([`overfull_scale`]) instead, its row part set to cancel its
+        // column part for uniform radiosity: [`Closure::apply`] adds both to the scaled
+        // gather, and the row must stay at 1 for the iteration to contract.
         for i in 0..n {
             if w_col[i] > 0.0 {
                 let bound = MAX_PART * area[i] / w_col[i];
@@ -419,7 +430,8 @@ impl Closure {
         let overfull = scales(r0, CLOSED_OVERFULL);
         for p in 0..n {
             if overfull.get(p).is_some_and(|&s| s < 1.0) {
-                row[p] = 0.0;
+                // row_of gives (T − R − Nκ)/W; without T − R, what cancels Nκ.
+                row[p] -= (target[p] - r0[p]) * inv_w[p];
             } else if w_row[p] > 0.0 {
                 let bound = MAX_PART / w_row[p];
                 row[p] = row[p].clamp(-bound, bound);

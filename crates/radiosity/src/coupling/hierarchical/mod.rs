@@ -1207,10 +1207,11 @@ impl Hierarchical {
             let rays = LinkRays::new(&shaft);
             // Each corner counts as a point, weighted by its own unoccluded form factor
             // relative to the points' mean: a corner that barely sees the source (grazing,
-            // in the source's plane) cannot make the link uncertain.
+            // in the source's plane) adds little to the link's error (though where the link
+            // splits for any reason, a corner that sees otherwise still opens the receiver).
             let (mut seen_weight, mut weight, mut differ) = (0.0, 0.0, false);
             for (k, (&x, &f)) in corners.iter().zip(&exact).enumerate() {
-                if f <= 0.0 {
+                if f.is_nan() || f <= 0.0 {
                     continue;
                 }
                 if let Some(v) = self.corner_visible(x, np.axis, source, &rays, k as u64) {
