@@ -1332,15 +1332,7 @@ impl Hierarchical {
             let mut fractions = Fractions::with_capacity(points.len());
             for (k, &(x, _)) in points.iter().enumerate() {
                 let (mut seen, mut all) = (0.0, 0.0);
-                let aimed = (0..count.div_ceil(stride)).map(|run| {
-                    let offset = if stride == 1 {
-                        0
-                    } else {
-                        (mix(salt, k as u64, run as u64) % stride as u64) as usize
-                    };
-                    (run * stride + offset).min(count - 1)
-                });
-                for j in aimed {
+                for j in aimed(count, stride, salt, k as u64) {
                     let weight = weights[k * count + j];
                     if weight <= 0.0 {
                         continue;
@@ -1403,15 +1395,8 @@ impl Hierarchical {
         salt: u64,
     ) -> Option<f64> {
         let count = source.sub_points.len();
-        let stride = (count / 4).max(1);
         let (mut seen, mut all) = (0.0, 0.0);
-        for run in 0..count.div_ceil(stride) {
-            let offset = if stride == 1 {
-                0
-            } else {
-                (mix(salt, 0, run as u64) % stride as u64) as usize
-            };
-            let j = (run * stride + offset).min(count - 1);
+        for j in aimed(count, (count / 4).max(1), salt, 0) {
             let y = source.sub_points[j];
             let d = y - x;
             let r2 = d.length_squared();
@@ -2244,6 +2229,20 @@ fn source_heap_bytes(source: &SourcePolygon) -> u64 {
         + block(source.sub_area_sizes.capacity() * std::mem::size_of::<f64>())
         + block(source.sub_areas.capacity() * std::mem::size_of::<Vec<DVec3>>())
         + pieces
+}
+
+/// The sub-areas (of `count`) that receiver point `point` aims one ray at, one in each run of
+/// `stride` consecutive ones, at an offset hashed from `salt`, the point and the run (the
+/// quick pass of [`Hierarchical::visible_fractions`]; [`Hierarchical::corner_visible`]).
+fn aimed(count: usize, stride: usize, salt: u64, point: u64) -> impl Iterator<Item = usize> {
+    (0..count.div_ceil(stride)).map(move |run| {
+        let offset = if stride == 1 {
+            0
+        } else {
+            (mix(salt, point, run as u64) % stride as u64) as usize
+        };
+        (run * stride + offset).min(count - 1)
+    })
 }
 
 /// A well-mixed 64-bit hash of three integers (the SplitMix64 finaliser, Steele, Lea &
