@@ -55,6 +55,7 @@ fn main() {
                 "radiosity_avg": e.radiosity,
                 "radiosity_avg_stderr": e.radiosity_stderr,
                 "direct_irradiance_avg": e.direct_irradiance,
+                "direct_irradiance_avg_stderr": e.direct_irradiance_stderr,
             })
         })
         .collect();

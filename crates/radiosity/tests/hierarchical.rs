@@ -1067,8 +1067,8 @@ fn path_traced() -> Value {
 /// added back, see the test above) agree within their standard errors: every polygon and
 /// channel within 3.5 of the two combined (57 comparisons: a normal variable exceeds 3.5
 /// once in 2,000; measured at most 2.4, the floor, where Mitsuba's direct light reads
-/// 0.8 % below both the path tracer and a deterministic quadrature), and on average within
-/// 0.4 % (measured 0.17 %). So neither reference carries an error the other does not show.
+/// 0.9 % below both the path tracer and a deterministic quadrature), and on average within
+/// 0.4 % (measured 0.14 %). So neither reference carries an error the other does not show.
 #[test]
 fn the_path_traced_reference_agrees_with_mitsuba() {
     let mitsuba = cornell_reference();
