@@ -1,5 +1,7 @@
 //! `radiosity compare`: every solver on the same mesh, error versus time and iterations,
-//! and the hierarchical solver (its own mesh, error per object) at a sweep of tolerances.
+//! and the hierarchical solver (its own mesh, error per object) at a sweep of tolerances;
+//! with `--reference`, every solve's per-polygon error against a reference from outside the
+//! engine.
 
 use crate::args::SolveArgs;
 use crate::cmd_progressive::prepare_output_dir;
@@ -8,7 +10,7 @@ use crate::progress::Bars;
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use radiosity::mesh::Mesh;
-use radiosity_studies::compare::{compare, CompareOptions};
+use radiosity_studies::compare::{compare_against, CompareOptions, ExternalReference};
 use std::path::PathBuf;
 
 /// `radiosity compare`. The shared solve options' help is adjusted where compare differs:
@@ -41,6 +43,12 @@ pub struct CompareArgs {
     /// Iteration cap for Jacobi and Gauss–Seidel [default: 2000].
     #[arg(long, value_name = "N", allow_hyphen_values = true)]
     pub max_iterations: Option<i64>,
+    /// Per-polygon reference radiosities (JSON: a "polygons" list of {"name",
+    /// "radiosity_avg"}, as the path tracer's example writes, or the shared Mitsuba
+    /// reference's file): every solve's per-polygon error against it is added to the table
+    /// (the study mesh's converged solution and each hierarchical solve).
+    #[arg(long, value_name = "FILE")]
+    pub reference: Option<PathBuf>,
     #[command(flatten)]
     pub solve: SolveArgs,
 }
@@ -91,17 +99,36 @@ pub fn run(args: CompareArgs) -> Result<()> {
             options.target_error
         );
     }
+    let external = match &args.reference {
+        None => None,
+        Some(path) => {
+            let text = std::fs::read_to_string(path)
+                .with_context(|| format!("reading the reference {}", path.display()))?;
+            let value: serde_json::Value = serde_json::from_str(&text)
+                .with_context(|| format!("{}: not JSON", path.display()))?;
+            let reference = ExternalReference::from_json(&path.display().to_string(), &value)
+                .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+            // Every object named must be in the scene, checked before the long run.
+            for (name, _) in &reference.objects {
+                if !loaded.scene.surfaces.iter().any(|s| &s.object == name) {
+                    bail!("{}: object {name:?} is not in the scene", path.display());
+                }
+            }
+            Some(reference)
+        }
+    };
     prepare_output_dir(&args.output)?;
     let mut mesh = Mesh::build(&loaded.scene, &settings.solve.mesh).context("meshing")?;
     // The first shot from light sources, as every solve takes it (the hierarchical runs
     // take theirs in the pipeline).
     radiosity::direct::illuminate(&mut mesh, &loaded.scene.lights);
     let bars = Bars::new(args.solve.quiet);
-    let comparison = compare(
+    let comparison = compare_against(
         &loaded.scene,
         &mesh,
         settings.solve.form_factor,
         &options,
+        external.as_ref(),
         &bars,
     )?;
     comparison.write(&args.output)?;

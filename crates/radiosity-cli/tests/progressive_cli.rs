@@ -282,5 +282,60 @@ fn compare_rejects_bad_options() {
     assert_fails_cleanly(&o(&["--target-error", "2"]), &["--target-error"]);
     assert_fails_cleanly(&o(&["--tolerance", "1e-3"]), &["--target-error"]);
     assert_fails_cleanly(&o(&["--epsilon", "1"]), &["--epsilon"]);
+    // A per-polygon reference that is missing, not JSON, malformed, or names an object the
+    // scene lacks: refused before any work, naming the file (and the object).
+    let missing = d.path().join("missing.json");
+    assert_fails_cleanly(
+        &o(&["--reference", missing.to_str().unwrap()]),
+        &["missing.json"],
+    );
+    let bad = d.path().join("bad.json");
+    for (text, says) in [
+        ("not json", "not JSON"),
+        (r#"{"polygons": [{"name": "floor"}]}"#, "radiosity_avg"),
+        (
+            r#"{"polygons": [{"name": "no_such_wall", "radiosity_avg": [1, 1, 1]}]}"#,
+            "no_such_wall",
+        ),
+    ] {
+        std::fs::write(&bad, text).unwrap();
+        assert_fails_cleanly(
+            &o(&["--reference", bad.to_str().unwrap()]),
+            &["bad.json", says],
+        );
+    }
     assert!(!out.exists());
+}
+
+/// `--reference`: every solve measured per polygon against the path tracer's values of the
+/// Cornell box, in the table.
+#[test]
+fn compare_measures_against_a_per_polygon_reference() {
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("cmp");
+    let reference = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../radiosity/tests/reference/cornell_path_traced.json"
+    );
+    let o = run(&[
+        "compare",
+        "-o",
+        out.to_str().unwrap(),
+        "--elements",
+        "200",
+        "--epsilon",
+        "0.04",
+        "--reference",
+        reference,
+        "-q",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let table = std::fs::read_to_string(out.join("table.md")).unwrap();
+    for needle in [
+        "cornell_path_traced.json, per polygon",
+        "| study mesh, ",
+        "| hierarchical, ε = 0.04, ",
+    ] {
+        assert!(table.contains(needle), "{needle}: {table}");
+    }
 }
