@@ -17,6 +17,33 @@ fn cornell_reference() -> Value {
     serde_json::from_str(include_str!("reference/cornell_reference.json")).unwrap()
 }
 
+/// Mitsuba's per-polygon radiosity of `name` in channel `c` with the light the lamp itself
+/// reflects towards it added back (see
+/// `the_blocks_tops_match_mitsuba_once_the_lamps_reflection_is_counted`): the value as
+/// given plus ρ · H_direct / (π L_e) · (B_lamp − π L_e). Returns (corrected, as given).
+fn mitsuba_with_lamp_reflection(scene: &Scene, name: &str, c: usize) -> (f64, f64) {
+    let reference = cornell_reference();
+    let polygons = reference["per_polygon_area_averaged"]["polygons"]
+        .as_array()
+        .unwrap();
+    let by_name = |name: &str| polygons.iter().find(|p| p["name"] == name).unwrap();
+    let lamp_exitance = PI
+        * scene
+            .surfaces
+            .iter()
+            .map(|s| scene.material(s))
+            .find(|m| m.emission[0] > 0.0)
+            .unwrap()
+            .emission[c];
+    let surface = scene.surfaces.iter().find(|s| s.object == name).unwrap();
+    let rho = scene.material(surface).reflectance[c];
+    let polygon = by_name(name);
+    let raw = polygon["radiosity_avg"][c].as_f64().unwrap();
+    let direct = polygon["direct_only_irradiance_avg"][c].as_f64().unwrap();
+    let reflected = by_name("light")["radiosity_avg"][c].as_f64().unwrap() - lamp_exitance;
+    (raw + rho * direct / lamp_exitance * reflected, raw)
+}
+
 fn hierarchical(epsilon: f64) -> SolveSettings {
     let mut settings = SolveSettings {
         solve: SolveOptions {
@@ -118,27 +145,10 @@ fn cornell_box_converges_to_mitsuba_as_epsilon_shrinks() {
 fn the_blocks_tops_match_mitsuba_once_the_lamps_reflection_is_counted() {
     let scene = cornell_box();
     let (_, report) = solve(&scene, &hierarchical(0.01));
-    let lamp_material = scene
-        .surfaces
-        .iter()
-        .map(|s| scene.material(s))
-        .find(|m| m.emission[0] > 0.0)
-        .unwrap();
-    let lamp_exitance = lamp_material.emission.map(|l| PI * l);
-    let reference = cornell_reference();
-    let polygons = reference["per_polygon_area_averaged"]["polygons"]
-        .as_array()
-        .unwrap();
-    let by_name = |name: &str| polygons.iter().find(|p| p["name"] == name).unwrap();
-    let lamp = by_name("light");
     for name in ["tall_block_top", "short_block_top"] {
-        let polygon = by_name(name);
         let ours = report.object(name).unwrap();
         for c in 0..3 {
-            let raw = polygon["radiosity_avg"][c].as_f64().unwrap();
-            let direct = polygon["direct_only_irradiance_avg"][c].as_f64().unwrap();
-            let reflected = lamp["radiosity_avg"][c].as_f64().unwrap() - lamp_exitance[c];
-            let want = raw + ours.reflectance[c] * direct / lamp_exitance[c] * reflected;
+            let (want, raw) = mitsuba_with_lamp_reflection(&scene, name, c);
             let rel = (ours.radiosity[c] - want) / want;
             eprintln!(
                 "{name} channel {c}: {:+.2} % ({:+.2} % against the value as given)",
@@ -1077,16 +1087,7 @@ fn the_path_traced_reference_agrees_with_mitsuba() {
         .as_array()
         .unwrap();
     let by_name = |name: &str| polygons.iter().find(|p| p["name"] == name).unwrap();
-    let lamp = by_name("light");
     let scene = cornell_box();
-    let lamp_exitance = scene
-        .surfaces
-        .iter()
-        .map(|s| scene.material(s))
-        .find(|m| m.emission[0] > 0.0)
-        .unwrap()
-        .emission
-        .map(|l| PI * l);
     let mut sum = 0.0;
     let mut count = 0;
     for t in traced["polygons"].as_array().unwrap() {
@@ -1095,13 +1096,8 @@ fn the_path_traced_reference_agrees_with_mitsuba() {
             continue;
         }
         let m = by_name(name);
-        let surface = scene.surfaces.iter().find(|s| s.object == name).unwrap();
-        let rho = scene.material(surface).reflectance;
         for c in 0..3 {
-            let direct = m["direct_only_irradiance_avg"][c].as_f64().unwrap();
-            let reflected = lamp["radiosity_avg"][c].as_f64().unwrap() - lamp_exitance[c];
-            let want = m["radiosity_avg"][c].as_f64().unwrap()
-                + rho[c] * direct / lamp_exitance[c] * reflected;
+            let (want, _) = mitsuba_with_lamp_reflection(&scene, name, c);
             let got = t["radiosity_avg"][c].as_f64().unwrap();
             let se = (m["radiosity_avg_stderr"][c].as_f64().unwrap().powi(2)
                 + t["radiosity_avg_stderr"][c].as_f64().unwrap().powi(2))
