@@ -2,18 +2,20 @@
 //! tessellated Cornell box (38 k² input triangles, [`radiosity::generate::tessellated`]),
 //! the Cornell box with two spheres of 8 k(k − 1) triangles
 //! ([`radiosity::generate::cornell_with_spheres`]: curved surfaces, whose triangles do not
-//! merge) and furnished rooms of N boxes and shelves ([`radiosity::generate::furnished_room`],
-//! seed 1), with the growth exponent of time in input size fitted by least squares on
+//! merge), furnished rooms of N boxes and shelves ([`radiosity::generate::furnished_room`],
+//! seed 1) and meeting rooms of N chairs ([`radiosity::generate::meeting_room`]: tessellated
+//! furniture whose legs pierce what they hold, as real interior models are made), with the
+//! growth exponent of time in input size fitted by least squares on
 //! log–log axes.
 //!
 //! Each size runs in its own process, so that its peak resident memory (`VmHWM`) is its own.
 //!
 //! Run: `cargo bench -p radiosity --bench scale` (sizes that run in a few minutes on two
 //! cores), or with `-- --full` up to the 1 M-triangle Cornell box and 10⁵ furnished
-//! objects; `-- cornell`, `-- spheres` or `-- room` runs one family.
+//! objects; `-- cornell`, `-- spheres`, `-- room` or `-- meeting` runs one family.
 
 use radiosity::coupling::hierarchical::HierarchicalOptions;
-use radiosity::generate::{cornell_with_spheres, furnished_room, tessellated};
+use radiosity::generate::{cornell_with_spheres, furnished_room, meeting_room, tessellated};
 use radiosity::scene::Scene;
 use radiosity::solve::{NoObserver, SolveOptions, SolverKind};
 use radiosity::FormFactorMethod;
@@ -36,10 +38,15 @@ struct Row {
     estimate_mib: f64,
 }
 
+/// Divisions of the meeting room's curved parts ([`meeting_room`]): about 12 k triangles
+/// per chair.
+const MEETING_SEGMENTS: usize = 36;
+
 fn scene(family: &str, size: usize) -> Scene {
     match family {
         "cornell" => tessellated(&radiosity::cornell::cornell_box(), size),
         "spheres" => cornell_with_spheres(size),
+        "meeting" => meeting_room(size, MEETING_SEGMENTS),
         _ => furnished_room(size, 1),
     }
 }
@@ -144,7 +151,7 @@ fn main() {
     let full = args.iter().any(|a| a == "--full");
     let only = args
         .iter()
-        .find(|a| *a == "cornell" || *a == "spheres" || *a == "room")
+        .find(|a| *a == "cornell" || *a == "spheres" || *a == "room" || *a == "meeting")
         .cloned();
     let families: Vec<(&str, Vec<usize>)> = vec![
         (
@@ -169,6 +176,14 @@ fn main() {
                 vec![1000, 3162, 10000, 31623, 100000]
             } else {
                 vec![300, 1000, 3000]
+            },
+        ),
+        (
+            "meeting",
+            if full {
+                vec![2, 6, 12, 24, 48]
+            } else {
+                vec![2, 6, 12]
             },
         ),
     ];

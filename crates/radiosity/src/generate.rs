@@ -1,8 +1,10 @@
 //! Procedural scenes of any size, for scaling studies and tests: the Cornell box with every
 //! polygon tessellated into many small ones (the same box, so the same answer, from
 //! k² times the input), the Cornell box with two finely tessellated spheres (curved
-//! surfaces, whose triangles do not merge back into polygons), and a closed room furnished
-//! with N boxes and shelves at random (fixed seed), lit by a grid of ceiling panels.
+//! surfaces, whose triangles do not merge back into polygons), a closed room furnished
+//! with N boxes and shelves at random (fixed seed), lit by a grid of ceiling panels, and a
+//! closed meeting room of N chairs made as real interior models are (tessellated cushions,
+//! legs that pierce what they hold).
 
 use crate::geometry::Polygon;
 use crate::scene::{Material, MaterialId, Origin, Scene, Surface};
@@ -166,38 +168,10 @@ pub fn furnished_room(objects: usize, seed: u64) -> Scene {
     // housing of four side faces up to the ceiling (no light is lost on the panel's back).
     let panels = ((side / PANEL_SPACING).round() as usize).max(1);
     let pitch = side / panels as f64;
-    let drop = 0.05;
-    let a = 0.5 * PANEL_SIDE;
     for i in 0..panels {
         for j in 0..panels {
             let (cx, cz) = ((i as f64 + 0.5) * pitch, (j as f64 + 0.5) * pitch);
-            let name = format!("panel_{i}_{j}");
-            let y = h - drop;
-            add(
-                &name,
-                3,
-                [
-                    p(cx - a, y, cz - a),
-                    p(cx + a, y, cz - a),
-                    p(cx + a, y, cz + a),
-                    p(cx - a, y, cz + a),
-                ],
-            );
-            let lo = p(cx - a, y, cz - a);
-            let housing = |add: &mut dyn FnMut(&str, u32, [DVec3; 4])| {
-                let c = [
-                    lo,
-                    lo + DVec3::X * PANEL_SIDE,
-                    lo + DVec3::new(PANEL_SIDE, 0.0, PANEL_SIDE),
-                    lo + DVec3::Z * PANEL_SIDE,
-                ];
-                let up = DVec3::Y * drop;
-                for k in 0..4 {
-                    let (p0, q0) = (c[(k + 1) % 4], c[k]);
-                    add(&name, 2, [p0, q0, q0 + up, p0 + up]);
-                }
-            };
-            housing(&mut add);
+            luminaire(&mut add, &format!("panel_{i}_{j}"), cx, cz, h, 3, 2);
         }
     }
     // Furniture, one piece per grid cell in row order.
@@ -246,6 +220,294 @@ pub fn furnished_room(objects: usize, seed: u64) -> Scene {
     }
     Scene {
         name: format!("room_{objects}"),
+        materials,
+        surfaces,
+        lights: Vec::new(),
+        camera: None,
+    }
+}
+
+/// Spacing of the chairs along the meeting room's table, m.
+const CHAIR_PITCH: f64 = 0.7;
+
+/// A closed meeting room with `chairs` chairs around one long table, made as real interior
+/// models are: every curved part a mesh of small triangles (`segments` divisions around a
+/// leg and across a cushion), legs that pierce the parts they hold up (a chair's five legs
+/// end inside its seat, the table's four inside its top), and pieces that touch without
+/// sharing edges. The table runs along x, 0.7 m of it per pair of chairs; chairs face it
+/// from both sides, each a seat and a back (closed cushions bulging 3 and 2 cm, two sheets of
+/// 2·segments² triangles each), five legs (tubes of `segments`/2 sides in `segments`/4 bands)
+/// and two arm rests (boxes); the table's top and underside are grids of triangles. Walls,
+/// floor and ceiling are single polygons facing in; luminaires as in [`furnished_room`] every
+/// 2 m along the table, in two rows, so the room is closed. About 9·segments² triangles per
+/// chair and 8·segments² for the table: 24 chairs of 36 segments give about 300 k.
+pub fn meeting_room(chairs: usize, segments: usize) -> Scene {
+    let segments = segments.max(4);
+    let per_side = chairs.div_ceil(2).max(1);
+    let table_length = CHAIR_PITCH * per_side as f64 + 0.6;
+    let (width, depth, height) = (table_length + 3.0, 6.0, HEIGHT);
+    let materials = vec![
+        Material::new("carpet", [0.25, 0.22, 0.2], [0.0; 3]),
+        Material::new("wall", [0.7, 0.68, 0.62], [0.0; 3]),
+        Material::new("ceiling", [0.8, 0.8, 0.8], [0.0; 3]),
+        Material::new("panel", [0.0; 3], [ROOM_PANEL_RADIANCE; 3]),
+        Material::new("fabric", [0.25, 0.3, 0.5], [0.0; 3]),
+        Material::new("metal", [0.6, 0.6, 0.62], [0.0; 3]),
+        Material::new("wood", [0.5, 0.35, 0.2], [0.0; 3]),
+    ];
+    let (carpet, wall, ceiling, panel, fabric, metal, wood) = (0, 1, 2, 3, 4, 5, 6);
+    let mut surfaces = Vec::new();
+    let mut polygon = |object: &str, material: u32, corners: &[DVec3]| {
+        // Every polygon built here has positive extent; a degenerate one would be a bug in
+        // the generator, skipped rather than aborting a benchmark.
+        if let Ok(polygon) = Polygon::new(corners.to_vec()) {
+            surfaces.push(Surface {
+                object: object.to_owned(),
+                group: String::new(),
+                material: MaterialId(material),
+                polygon,
+                origin: Origin::default(),
+            });
+        }
+    };
+    // A quad as two triangles, as exporters write it.
+    let triangles = |polygon: &mut dyn FnMut(&str, u32, &[DVec3]),
+                     object: &str,
+                     material: u32,
+                     [a, b, c, d]: [DVec3; 4]| {
+        polygon(object, material, &[a, b, c]);
+        polygon(object, material, &[a, c, d]);
+    };
+    let p = |x: f64, y: f64, z: f64| DVec3::new(x, y, z);
+    let (w, d, h) = (width, depth, height);
+    // Shell, facing in.
+    polygon(
+        "floor",
+        carpet,
+        &[p(0., 0., 0.), p(0., 0., d), p(w, 0., d), p(w, 0., 0.)],
+    );
+    polygon(
+        "ceiling",
+        ceiling,
+        &[p(0., h, 0.), p(w, h, 0.), p(w, h, d), p(0., h, d)],
+    );
+    polygon(
+        "wall_south",
+        wall,
+        &[p(0., 0., 0.), p(w, 0., 0.), p(w, h, 0.), p(0., h, 0.)],
+    );
+    polygon(
+        "wall_north",
+        wall,
+        &[p(0., 0., d), p(0., h, d), p(w, h, d), p(w, 0., d)],
+    );
+    polygon(
+        "wall_west",
+        wall,
+        &[p(0., 0., 0.), p(0., h, 0.), p(0., h, d), p(0., 0., d)],
+    );
+    polygon(
+        "wall_east",
+        wall,
+        &[p(w, 0., 0.), p(w, 0., d), p(w, h, d), p(w, h, 0.)],
+    );
+    let lamps = ((width / 2.0).round() as usize).max(1);
+    for i in 0..lamps {
+        for (j, z) in [0.35 * depth, 0.65 * depth].into_iter().enumerate() {
+            let x = (i as f64 + 0.5) * width / lamps as f64;
+            luminaire(
+                &mut |o: &str, m: u32, q: [DVec3; 4]| polygon(o, m, &q),
+                &format!("panel_{i}_{j}"),
+                x,
+                z,
+                h,
+                panel,
+                ceiling,
+            );
+        }
+    }
+    // A tube about the vertical through `foot`, radius `r`, from the floor up to `top`,
+    // facing out, open at both ends (they stand on the floor and end inside a part).
+    let tube = |polygon: &mut dyn FnMut(&str, u32, &[DVec3]),
+                object: &str,
+                foot: DVec3,
+                r: f64,
+                top: f64| {
+        let sides = (segments / 2).max(3);
+        let bands = (segments / 4).max(1);
+        let at = |k: usize, y: f64| {
+            let a = std::f64::consts::TAU * (k % sides) as f64 / sides as f64;
+            foot + DVec3::new(r * a.cos(), y, r * a.sin())
+        };
+        for band in 0..bands {
+            let (y0, y1) = (
+                top * band as f64 / bands as f64,
+                top * (band + 1) as f64 / bands as f64,
+            );
+            for k in 0..sides {
+                triangles(
+                    polygon,
+                    object,
+                    metal,
+                    [at(k, y0), at(k, y1), at(k + 1, y1), at(k + 1, y0)],
+                );
+            }
+        }
+    };
+    // A closed cushion over the rectangle `origin` + s·ex + t·ey (s, t in [0, 1]), bulging
+    // `bulge` along ex × ey and a third of it the other way, both sheets facing out.
+    let cushion = |polygon: &mut dyn FnMut(&str, u32, &[DVec3]),
+                   object: &str,
+                   origin: DVec3,
+                   ex: DVec3,
+                   ey: DVec3,
+                   bulge: f64| {
+        let n = ex.cross(ey).normalize();
+        for (side, height) in [(1.0, bulge), (-1.0, bulge / 3.0)] {
+            let at = |i: usize, j: usize| {
+                let (s, t) = (i as f64 / segments as f64, j as f64 / segments as f64);
+                let lift =
+                    height * (std::f64::consts::PI * s).sin() * (std::f64::consts::PI * t).sin();
+                origin + ex * s + ey * t + n * (side * lift)
+            };
+            for i in 0..segments {
+                for j in 0..segments {
+                    let quad = [at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)];
+                    let quad = if side > 0.0 {
+                        quad
+                    } else {
+                        [quad[0], quad[3], quad[2], quad[1]]
+                    };
+                    triangles(polygon, object, fabric, quad);
+                }
+            }
+        }
+    };
+    // The table: a 4 cm slab whose top and underside are grids of triangles, its legs
+    // ending 2 cm inside it.
+    let (x0, x1, z0, z1, top) = (
+        1.5,
+        1.5 + table_length,
+        0.5 * depth - 0.8,
+        0.5 * depth + 0.8,
+        0.74,
+    );
+    let slab = 0.04;
+    let (nx, nz) = (2 * segments, segments);
+    let grid = |i: usize, j: usize, y: f64| {
+        p(
+            x0 + (x1 - x0) * i as f64 / nx as f64,
+            y,
+            z0 + (z1 - z0) * j as f64 / nz as f64,
+        )
+    };
+    for i in 0..nx {
+        for j in 0..nz {
+            let (a, b, c, e) = (
+                grid(i, j, top),
+                grid(i, j + 1, top),
+                grid(i + 1, j + 1, top),
+                grid(i + 1, j, top),
+            );
+            triangles(&mut polygon, "table", wood, [a, b, c, e]);
+            let down = DVec3::Y * slab;
+            triangles(
+                &mut polygon,
+                "table",
+                wood,
+                [a - down, e - down, c - down, b - down],
+            );
+        }
+    }
+    cuboid(
+        &mut |o: &str, m: u32, q: [DVec3; 4]| {
+            // The slab's four edges (its top and bottom are the grids above).
+            if (q[0].y - q[1].y).abs() > 0.0 || (q[1].y - q[2].y).abs() > 0.0 {
+                polygon(o, m, &q);
+            }
+        },
+        "table",
+        wood,
+        p(x0, top - slab, z0),
+        DVec3::X * (x1 - x0),
+        DVec3::Z * (z1 - z0),
+        slab,
+        false,
+    );
+    for (x, z) in [
+        (x0 + 0.3, z0 + 0.3),
+        (x1 - 0.3, z0 + 0.3),
+        (x0 + 0.3, z1 - 0.3),
+        (x1 - 0.3, z1 - 0.3),
+    ] {
+        tube(&mut polygon, "table_legs", p(x, 0.0, z), 0.04, top - 0.02);
+    }
+    // The chairs, alternately on the south and north side, facing the table.
+    for k in 0..chairs {
+        let x = x0 + 0.3 + CHAIR_PITCH * ((k / 2) as f64 + 0.5);
+        let south = k % 2 == 0;
+        let z = if south { z0 - 0.45 } else { z1 + 0.45 };
+        let name = format!("chair_{k}");
+        let seat = 0.45;
+        let half = 0.24;
+        cushion(
+            &mut polygon,
+            &format!("{name}_seat"),
+            p(x - half, seat, z - half),
+            DVec3::Z * (2.0 * half),
+            DVec3::X * (2.0 * half),
+            0.03,
+        );
+        // The back, on the side away from the table, bulging toward it.
+        let back_z = if south {
+            z - half - 0.02
+        } else {
+            z + half + 0.02
+        };
+        let (ex, ey) = if south {
+            (DVec3::X * (2.0 * half), DVec3::Y * 0.5)
+        } else {
+            (DVec3::Y * 0.5, DVec3::X * (2.0 * half))
+        };
+        cushion(
+            &mut polygon,
+            &format!("{name}_back"),
+            p(x - half, seat + 0.08, back_z),
+            ex,
+            ey,
+            0.02,
+        );
+        for (dx, dz) in [
+            (-0.18, -0.18),
+            (0.18, -0.18),
+            (-0.18, 0.18),
+            (0.18, 0.18),
+            (0.0, 0.0),
+        ] {
+            tube(
+                &mut polygon,
+                &format!("{name}_legs"),
+                p(x + dx, 0.0, z + dz),
+                0.015,
+                seat + 0.002,
+            );
+        }
+        for side in [-1.0, 1.0] {
+            let lo = p(x + side * (half + 0.02) - 0.015, seat + 0.2, z - 0.2);
+            cuboid(
+                &mut |o: &str, m: u32, q: [DVec3; 4]| polygon(o, m, &q),
+                &format!("{name}_arms"),
+                metal,
+                lo,
+                DVec3::X * 0.03,
+                DVec3::Z * 0.4,
+                0.03,
+                true,
+            );
+        }
+    }
+    Scene {
+        name: format!("meeting_room_{chairs}_{segments}"),
         materials,
         surfaces,
         lights: Vec::new(),
@@ -317,6 +579,47 @@ pub fn cornell_with_spheres(rings: usize) -> Scene {
     }
     scene.name = format!("cornell_spheres_{rings}");
     scene
+}
+
+/// A ceiling luminaire centred on (`cx`, `cz`) under a ceiling at height `h`: a square
+/// emitting panel of [`PANEL_SIDE`] facing down, 5 cm below the ceiling (material `panel`),
+/// in a housing of four side faces up to the ceiling (material `housing`), so that no light
+/// falls on the panel's back.
+fn luminaire(
+    add: &mut impl FnMut(&str, u32, [DVec3; 4]),
+    name: &str,
+    cx: f64,
+    cz: f64,
+    h: f64,
+    panel: u32,
+    housing: u32,
+) {
+    let drop = 0.05;
+    let a = 0.5 * PANEL_SIDE;
+    let y = h - drop;
+    let p = |x: f64, y: f64, z: f64| DVec3::new(x, y, z);
+    add(
+        name,
+        panel,
+        [
+            p(cx - a, y, cz - a),
+            p(cx + a, y, cz - a),
+            p(cx + a, y, cz + a),
+            p(cx - a, y, cz + a),
+        ],
+    );
+    let lo = p(cx - a, y, cz - a);
+    let c = [
+        lo,
+        lo + DVec3::X * PANEL_SIDE,
+        lo + DVec3::new(PANEL_SIDE, 0.0, PANEL_SIDE),
+        lo + DVec3::Z * PANEL_SIDE,
+    ];
+    let up = DVec3::Y * drop;
+    for k in 0..4 {
+        let (p0, q0) = (c[(k + 1) % 4], c[k]);
+        add(name, housing, [p0, q0, q0 + up, p0 + up]);
+    }
 }
 
 /// A box with one corner at `lo`, horizontal edges `a` and `b` (a × b pointing up) and
@@ -454,5 +757,71 @@ mod tests {
             .filter(|s| room.material(s).is_emitter())
             .count();
         assert!(emitters > 0);
+    }
+
+    #[test]
+    fn a_meeting_room_is_closed_and_its_parts_face_out() {
+        let segments = 8;
+        let room = meeting_room(4, segments);
+        // Every closed part (a cushion: two sheets meeting at the rim) has vector area
+        // Σ n A = 0 (the divergence theorem), and faces out: its signed volume
+        // (1/3) Σ c · n A is positive. The shell faces in: its vector area is 0 too, its
+        // volume negative.
+        let part = |name: &str| -> (DVec3, f64, usize) {
+            room.surfaces
+                .iter()
+                .filter(|s| s.object == name)
+                .map(|s| {
+                    let na = s.polygon.normal() * s.polygon.area();
+                    (na, s.polygon.centroid().dot(na) / 3.0, 1)
+                })
+                .fold((DVec3::ZERO, 0.0, 0), |(a, v, n), (b, w, m)| {
+                    (a + b, v + w, n + m)
+                })
+        };
+        for chair in 0..4 {
+            for piece in ["seat", "back"] {
+                let (area, volume, count) = part(&format!("chair_{chair}_{piece}"));
+                assert_eq!(count, 4 * segments * segments);
+                // A cushion holds a few litres (48 × 48 cm, bulging 3 cm and 1 cm).
+                assert!(area.length() < 1e-9, "chair_{chair}_{piece}: {area}");
+                assert!(
+                    volume > 1e-4 && volume < 1e-2,
+                    "chair_{chair}_{piece}: {volume}"
+                );
+            }
+            // Each leg a tube of segments/2 sides in segments/4 bands, two triangles each.
+            let (_, _, legs) = part(&format!("chair_{chair}_legs"));
+            assert_eq!(legs, 5 * 2 * (segments / 2) * (segments / 4));
+        }
+        let shell: Vec<&Surface> = room
+            .surfaces
+            .iter()
+            .filter(|s| {
+                s.object == "floor" || s.object == "ceiling" || s.object.starts_with("wall")
+            })
+            .collect();
+        let area: DVec3 = shell
+            .iter()
+            .map(|s| s.polygon.normal() * s.polygon.area())
+            .sum();
+        let volume: f64 = shell
+            .iter()
+            .map(|s| s.polygon.centroid().dot(s.polygon.normal()) * s.polygon.area() / 3.0)
+            .sum();
+        assert!(area.length() < 1e-9, "{area}");
+        assert!(volume < 0.0, "the shell faces in: {volume}");
+        // A leg's top ends inside what it holds: between the seat's two sheets.
+        for s in room.surfaces.iter().filter(|s| s.object == "chair_0_legs") {
+            for v in s.polygon.vertices() {
+                assert!(v.y >= 0.0 && v.y <= 0.45 + 0.003, "{v}");
+            }
+        }
+        let emitters = room
+            .surfaces
+            .iter()
+            .filter(|s| room.material(s).is_emitter())
+            .count();
+        assert!(emitters >= 2);
     }
 }
