@@ -32,7 +32,11 @@
 //! pull–gather–push, computed once per mesh ([`columns`]).
 //!
 //! A row whose links' sum is more than [`MAX_CORRECTION`] below 1 keeps its sum as its
-//! target (a sum that far off is taken for geometry, not link error); a leaf whose part of
+//! target (a sum that far off is taken for geometry, not link error); a leaf of a polygon
+//! that another surface passes through (a table leg through the top it holds) has as its
+//! target the share of its hemisphere that meets fronts (part of it may lie inside the
+//! other object, where it sees only backs: closed to 1, the legs of a table read 19 % too
+//! bright against a path tracer); a leaf whose part of
 //! the joint balance would exceed [`MAX_PART`] (of the closed row, 1, or of its area) is
 //! held to it while the rest are balanced; and no leaf's irradiance is let below zero.
 
@@ -167,7 +171,14 @@ impl RowInputs {
             .iter()
             .map(|r| r[0])
             .collect();
-        let target: Vec<f64> = r0.iter().map(|&r| row_target(r)).collect();
+        // A leaf partly inside an object that pierces its polygon sees only backs there: its
+        // row's target is the share of its hemisphere that meets fronts.
+        let seen: Vec<f64> = h.leaves.iter().map(|&l| h.seen_share(l)).collect();
+        let target: Vec<f64> = r0
+            .iter()
+            .zip(&seen)
+            .map(|(&r, &f)| f * row_target(r / f.max(f64::MIN_POSITIVE)))
+            .collect();
         // W_p = Σ_{l→p} w_l.
         let per_node: Vec<f64> = h
             .links

@@ -28,6 +28,11 @@ pub struct InputPolygon {
     /// on it): it can neither receive nor give light, and the tree keeps it apart from the
     /// rest so that no cluster link spreads light onto it ([`Tree::build`]).
     pub buried: bool,
+    /// Whether another surface passes through it (a leg through a seat, a table leg through
+    /// the top it holds): some of its leaves lie partly inside that object and see only the
+    /// backs of its faces there, so they gather less than their whole hemisphere
+    /// ([`super::Hierarchical::seen_fraction`]).
+    pub pierced: bool,
 }
 
 /// What a node is.
