@@ -119,17 +119,7 @@ pub fn furnished_room(objects: usize, seed: u64) -> Scene {
     }
     let mut surfaces = Vec::new();
     let mut add = |object: &str, material: u32, corners: [DVec3; 4]| {
-        // Every quad built here has positive extent; a degenerate one would be a bug in
-        // the generator, skipped rather than aborting a benchmark.
-        if let Ok(polygon) = Polygon::new(corners.to_vec()) {
-            surfaces.push(Surface {
-                object: object.to_owned(),
-                group: String::new(),
-                material: MaterialId(material),
-                polygon,
-                origin: Origin::default(),
-            });
-        }
+        surfaces.extend(surface(object, material, &corners));
     };
     let p = |x: f64, y: f64, z: f64| DVec3::new(x, y, z);
     let (s, h) = (side, HEIGHT);
@@ -258,17 +248,7 @@ pub fn meeting_room(chairs: usize, segments: usize) -> Scene {
     let (carpet, wall, ceiling, panel, fabric, metal, wood) = (0, 1, 2, 3, 4, 5, 6);
     let mut surfaces = Vec::new();
     let mut polygon = |object: &str, material: u32, corners: &[DVec3]| {
-        // Every polygon built here has positive extent; a degenerate one would be a bug in
-        // the generator, skipped rather than aborting a benchmark.
-        if let Ok(polygon) = Polygon::new(corners.to_vec()) {
-            surfaces.push(Surface {
-                object: object.to_owned(),
-                group: String::new(),
-                material: MaterialId(material),
-                polygon,
-                origin: Origin::default(),
-            });
-        }
+        surfaces.extend(surface(object, material, corners));
     };
     // A quad as two triangles, as exporters write it.
     let triangles = |polygon: &mut dyn FnMut(&str, u32, &[DVec3]),
@@ -579,6 +559,19 @@ pub fn cornell_with_spheres(rings: usize) -> Scene {
     }
     scene.name = format!("cornell_spheres_{rings}");
     scene
+}
+
+/// A surface of `object` in `material` with these corners. Every polygon the generators
+/// build has positive extent; a degenerate one would be a bug in the generator, skipped
+/// (`None`) rather than aborting a benchmark.
+fn surface(object: &str, material: u32, corners: &[DVec3]) -> Option<Surface> {
+    Polygon::new(corners.to_vec()).ok().map(|polygon| Surface {
+        object: object.to_owned(),
+        group: String::new(),
+        material: MaterialId(material),
+        polygon,
+        origin: Origin::default(),
+    })
 }
 
 /// A ceiling luminaire centred on (`cx`, `cz`) under a ceiling at height `h`: a square

@@ -367,16 +367,21 @@ fn a_furnished_room_of_the_scale_benchmark_keeps_its_light() {
     // 2.2e-3 by channel once receivers' corners were looked at, 0.4 % at 100 and 300
     // objects; 1.1 % when a floor piece beside a wall could be linked to the whole wall
     // through points that all missed the bright strip above it.)
-    let scene = radiosity::generate::furnished_room(30, 1);
+    assert_keeps_light(&radiosity::generate::furnished_room(30, 1), 1e-4);
+}
+
+/// Solves `scene` hierarchically at the default ε and tolerance and checks that, in every
+/// channel, less than `bound` of the emitted power escapes.
+fn assert_keeps_light(scene: &Scene, bound: f64) {
     let default_tolerance = SolveOptions::default().tolerance;
-    let solved = solve(&scene, 2000, SolverKind::Hierarchical, default_tolerance);
-    let report = Report::new("room", &solved.mesh, &solved.solution, "raycast");
+    let solved = solve(scene, 2000, SolverKind::Hierarchical, default_tolerance);
+    let report = Report::new(&scene.name, &solved.mesh, &solved.solution, "raycast");
     let t = &report.totals;
     for c in 0..3 {
         let escaped = t.escaped_power[c] / t.emitted_power[c];
         eprintln!("channel {c}: {escaped:.2e} of the power escaped");
         assert!(
-            escaped.abs() < 1e-4,
+            escaped.abs() < bound,
             "channel {c}: {escaped:.2e} of the power escaped"
         );
     }
@@ -395,19 +400,7 @@ fn a_meeting_room_of_tessellated_chairs_keeps_its_light() {
     // bright; with the legs lifted 1 mm off the floor, 3e-5 then; without legs, 1e-5.)
     // Bound 5e-4: a leak of the kind the furnished rooms had (1e-3 to 1e-2 before their
     // fixes) fails it.
-    let scene = radiosity::generate::meeting_room(2, 12);
-    let default_tolerance = SolveOptions::default().tolerance;
-    let solved = solve(&scene, 2000, SolverKind::Hierarchical, default_tolerance);
-    let report = Report::new("meeting", &solved.mesh, &solved.solution, "raycast");
-    let t = &report.totals;
-    for c in 0..3 {
-        let escaped = t.escaped_power[c] / t.emitted_power[c];
-        eprintln!("channel {c}: {escaped:.2e} of the power escaped");
-        assert!(
-            escaped.abs() < 5e-4,
-            "channel {c}: {escaped:.2e} of the power escaped"
-        );
-    }
+    assert_keeps_light(&radiosity::generate::meeting_room(2, 12), 5e-4);
 }
 
 #[test]
