@@ -29,8 +29,8 @@ pub struct HierarchicalSolution {
     pub links: usize,
     /// Nodes of the hierarchy at the end.
     pub nodes: usize,
-    /// The hierarchy's estimated memory at the end, bytes ([`Hierarchical::bytes`]): what the
-    /// memory limit is checked against.
+    /// The hierarchy's largest estimated memory, bytes ([`Hierarchical::largest_bytes`]):
+    /// what the memory limit is checked against.
     pub bytes: u64,
     /// Whether refinement stopped at the memory limit.
     pub capped: bool,
@@ -147,7 +147,7 @@ pub fn solve(
         progress.finish();
         // The final mesh is balanced in full; the others only guide the next refinement.
         b = if stage == 0 {
-            h.remesh(scene)
+            h.finish_refining(scene)
         } else {
             h.remesh_for_refining(scene)
         };
@@ -179,7 +179,10 @@ pub fn solve(
         );
         carried.iterations += s.stats.iterations;
         b = s.radiosity.clone();
-        h.set_solution(&b, &s.irradiance);
+        // The next refinement's oracle (none after the last stage).
+        if stage > 0 {
+            h.set_solution(&b, &s.irradiance);
+        }
         solution = Some(s);
         if carried.stopped {
             break;
@@ -209,7 +212,7 @@ pub fn solve(
     Ok(HierarchicalSolution {
         links: h.link_count(),
         nodes: h.node_count(),
-        bytes: h.bytes(),
+        bytes: h.largest_bytes(),
         capped: h.capped,
         forced: h.forced,
         overfull: h.overfull_objects(),

@@ -741,6 +741,9 @@ fn columns(h: &Hierarchical) -> Vec<f64> {
             out
         })
         .collect();
+    // Let go before the sweep down: at 80 bytes a node, 0.3 GiB of the room of 10⁵
+    // objects' 3.9 M nodes.
+    drop((leaf_moment, moment, mean, vector, slope));
     let sums = leaf_values(h, &down(h, per_node));
     h.leaves
         .iter()

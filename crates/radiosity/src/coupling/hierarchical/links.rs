@@ -100,6 +100,12 @@ impl LinkList {
         }
     }
 
+    /// Gives back the storage beyond the links held (a list grows by a quarter at a time,
+    /// [`LinkList::extend_growing`]).
+    pub fn shrink_to_fit(&mut self) {
+        self.words.shrink_to_fit();
+    }
+
     /// The links, decoded.
     pub fn iter(&self) -> Iter<'_> {
         Iter { words: &self.words }
@@ -118,19 +124,6 @@ impl LinkList {
     /// Words held (4 bytes each).
     pub fn words(&self) -> usize {
         self.words.len()
-    }
-
-    /// Up to `count` links from word `from` on (a link boundary: 0, or what the previous
-    /// call returned), and the word after the last of them.
-    pub fn read(&self, from: usize, count: usize) -> (Vec<Link>, usize) {
-        let mut at = from;
-        let mut out = Vec::with_capacity(count);
-        while out.len() < count && at < self.words.len() {
-            let (link, n) = decode(&self.words[at..]);
-            out.push(link);
-            at += n;
-        }
-        (out, at)
     }
 
     /// Keeps the links for which `keep` is true, in order, in place.
@@ -313,7 +306,7 @@ mod tests {
 
     /// Retain keeps the chosen links in order; sorting by source is stable.
     #[test]
-    fn retain_and_sort_keep_the_links_they_should() {
+    fn retain_sort_and_shrink_keep_the_links_they_should() {
         let links = every_kind();
         let mut list = LinkList::default();
         list.extend_growing(links.iter().copied());
@@ -332,12 +325,10 @@ mod tests {
         let from3: Vec<Link> = list.iter().filter(|l| l.source == 3).collect();
         assert!(matches!(from3[0].transfer, Transfer::Uniform(_)));
         assert!(matches!(from3[1].transfer, Transfer::Tensor(..)));
-        // Read back in pieces from where the last piece ended.
-        let (first, at) = list.read(0, 2);
-        let (rest, end) = list.read(at, 10);
-        assert_eq!([first, rest].concat(), list.iter().collect::<Vec<_>>());
-        assert_eq!(end, list.words());
-        assert!(list.read(end, 3).0.is_empty());
+        // Shrunk to fit, it holds the same links.
+        let before: Vec<Link> = list.iter().collect();
+        list.shrink_to_fit();
+        assert_eq!(list.iter().collect::<Vec<_>>(), before);
         list.retain(|_| false);
         assert!(list.is_empty());
         assert_eq!(list.len(), 0);

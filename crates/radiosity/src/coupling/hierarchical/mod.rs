@@ -52,6 +52,7 @@ use glam::DVec3;
 use links::LinkList;
 use rayon::prelude::*;
 use smallvec::SmallVec;
+use std::borrow::Cow;
 use std::collections::HashMap;
 use std::f64::consts::PI;
 use std::ops::Range;
@@ -207,6 +208,15 @@ const DARK_FLOOR: f64 = 0.05;
 /// 2.2 M and 2.4 M.
 const SETTLE_MARGIN: f64 = 2.0;
 
+/// The most bytes of ray-cast sources kept between links ([`Hierarchical::source`]); past
+/// it each link makes its source again. Measured on the furnished rooms at ε = 0.02: kept
+/// without bound, the sources took 29 MB of the room of 1000 objects and 141 MB of the
+/// room of 10,000 (about 800 bytes a source), and once freed they stayed in the heap
+/// between the links; made afresh at every link, the room of 1000 objects took 6 % more
+/// CPU (23.3 against 22.0 s, three runs each) and the room of 10,000 objects peaked at
+/// 984 MB instead of 1052 MB. The Cornell box's sources take under 1 MB.
+const SOURCE_CACHE_BYTES: u64 = 64 << 20;
+
 /// Bytes per node for memory estimates: the node, its solution state, its link list's
 /// header and source cache slot, four vertices, and, as a leaf, its mesh element with its
 /// four vertices and the solver's six per-element vectors (radiosity, irradiance and the
@@ -320,6 +330,11 @@ pub struct Hierarchical {
     /// Per node, the share of its hemisphere that meets fronts, once estimated for a leaf of
     /// a pierced polygon ([`Hierarchical::seen_fraction`]); NaN until then.
     seen: Vec<f32>,
+    /// Whether the refinement is over ([`Hierarchical::finish_refining`]).
+    finished: bool,
+    /// The largest [`Hierarchical::bytes`] at the end of a refinement, before
+    /// [`Hierarchical::finish_refining`] lets the sources go.
+    largest_bytes: u64,
 }
 
 /// What [`Hierarchical::refine_reporting`] reports after each chunk of candidate links.
@@ -478,6 +493,8 @@ impl Hierarchical {
             input_normals: normals,
             two_faced,
             seen: Vec::new(),
+            finished: false,
+            largest_bytes: 0,
         };
         h.grow();
         h.rebuild_mesh(&objects, scene, Balance::Joint);
@@ -500,6 +517,32 @@ impl Hierarchical {
         self.state.resize(n, State::default());
         self.sources.resize_with(n, OnceLock::new);
         self.seen.resize(n, f32::NAN);
+    }
+
+    /// The last leaf mesh, once the links are final ([`Hierarchical::remesh`]), for a
+    /// hierarchy that will not be refined again: what only the refinement needs goes first
+    /// (the sources' cached points, the room that the arena, the per-node vectors and the
+    /// link lists kept to grow into) and the oracle's per-node state after the mesh's
+    /// starting radiosities are read from it, so that the closure and the iterations run in
+    /// that much less memory. Later calls to [`Hierarchical::refine`] change nothing, and
+    /// [`Hierarchical::set_solution`] is not needed.
+    pub fn finish_refining(&mut self, scene: &Scene) -> Vec<[f64; 3]> {
+        let n = self.tree.nodes.len();
+        self.sources = Vec::new();
+        self.sources.resize_with(n, OnceLock::new);
+        self.source_bytes.store(0, Ordering::Relaxed);
+        self.tree.nodes.shrink_to_fit();
+        self.tree.vertices.shrink_to_fit();
+        self.links.shrink_to_fit();
+        self.links
+            .par_iter_mut()
+            .with_min_len(256)
+            .for_each(LinkList::shrink_to_fit);
+        self.seen.shrink_to_fit();
+        let b = self.remesh(scene);
+        self.state = Vec::new();
+        self.finished = true;
+        b
     }
 
     /// The hierarchy.
@@ -532,6 +575,13 @@ impl Hierarchical {
         self.bytes_with(self.link_words())
     }
 
+    /// The largest [`Hierarchical::bytes`] the hierarchy has had at the end of a
+    /// refinement or now, whichever is more: what the memory limit was checked against
+    /// (the sources it made count until [`Hierarchical::finish_refining`] lets them go).
+    pub fn largest_bytes(&self) -> u64 {
+        self.largest_bytes.max(self.bytes())
+    }
+
     /// [`Hierarchical::bytes`] with links of `words` words in all (counted by the caller:
     /// counting them visits every node).
     fn bytes_with(&self, words: usize) -> u64 {
@@ -545,8 +595,22 @@ impl Hierarchical {
         self.emitted
     }
 
-    fn source(&self, node: u32) -> &SourcePolygon {
-        self.sources[node as usize].get_or_init(|| {
+    /// The source polygon of node `node` for the kernel. With the ray-cast kernel
+    /// ([`Hierarchical::kernel_sampled_here`]) its sub-areas' centroids and areas, kept for
+    /// the next link from it until [`SOURCE_CACHE_BYTES`] are kept, then made afresh at each
+    /// call (the same numbers, to the bit); other kernels' sources, with their outlines,
+    /// are always kept.
+    fn source(&self, node: u32) -> Cow<'_, SourcePolygon> {
+        let slot = &self.sources[node as usize];
+        if self.kernel_sampled_here() {
+            if let Some(source) = slot.get() {
+                return Cow::Borrowed(source);
+            }
+            if self.source_bytes.load(Ordering::Relaxed) >= SOURCE_CACHE_BYTES {
+                return Cow::Owned(self.kernel.points_only_source(self.tree.polygon(node)));
+            }
+        }
+        Cow::Borrowed(slot.get_or_init(|| {
             // A kernel sampled here never reads its sources' outlines: not kept, 2.2 kB per
             // source polygon.
             let polygon = self.tree.polygon(node);
@@ -558,7 +622,7 @@ impl Hierarchical {
             self.source_bytes
                 .fetch_add(source_heap_bytes(&source), Ordering::Relaxed);
             Box::new(source)
-        })
+        }))
     }
 
     /// Whether the kernel's unoccluded value is the receiver points' sum of exact
@@ -648,6 +712,9 @@ impl Hierarchical {
     /// [`Hierarchical::refine`], calling `report` after every chunk of candidate links
     /// examined.
     pub fn refine_reporting(&mut self, epsilon: f64, report: &mut dyn FnMut(RefineStep)) -> bool {
+        if self.finished {
+            return false;
+        }
         let started = std::time::Instant::now();
         // The gather's scratch is not held while the links grow (a room of 1000 objects
         // peaked at 412 MB when it was, 382 MB now).
@@ -661,63 +728,100 @@ impl Hierarchical {
         // give (the estimate depends on the geometry alone): only the threshold and the
         // radiosities have changed. (Estimated again before: 12 to 15 % more linking time on
         // the Cornell box and the furnished rooms, for the same links.)
-        // The first round's links kept from before, parallel to its candidates (held apart
-        // from the candidates, so that the later rounds' carry no empty slot for them: 24
-        // bytes per candidate instead of 72), stored as the links are ([`LinkList`]: about
-        // half the 40 bytes a `Link` takes) and read back a chunk at a time.
-        let mut pending: Vec<Candidate> = Vec::new();
-        let mut kept = LinkList::default();
-        if self.links.iter().all(LinkList::is_empty) {
-            pending.push((0, 0, None));
+        // They are the first round's candidates, taken out of their receivers' lists a
+        // chunk at a time as the round reaches them, each with the link as it was kept (a
+        // list of them all, and of their kept links, made before the round was the
+        // refinement's peak in the room of 10⁵ objects, with the next round's candidates).
+        // Counted first, so that the round's size and the memory cap read what taking them
+        // all out at once gave.
+        let first = self.links.iter().all(LinkList::is_empty);
+        let (reexamined, reexamined_words) = if first {
+            (0, 0)
         } else {
-            for p in 0..self.links.len() {
-                let tol = self.tolerance(p as u32, epsilon);
-                // In place: a fresh pair of vectors per node cost 1 % of the Cornell box's
-                // linking (5.4 against 1.5 ms).
-                let mut links = std::mem::take(&mut self.links[p]);
-                links.retain(|l| {
-                    let keep = self.within(l, &tol);
-                    if !keep {
-                        pending.push((p as u32, l.source, None));
-                        kept.push(l);
-                    }
-                    keep
-                });
-                self.links[p] = links;
-            }
-        }
-        let mut kept_at = 0;
+            self.links
+                .par_iter()
+                .enumerate()
+                .map(|(p, links)| {
+                    let tol = self.tolerance(p as u32, epsilon);
+                    links
+                        .iter()
+                        .filter(|l| !self.within(l, &tol))
+                        .fold((0, 0), |(n, w), l| {
+                            (n + 1, w + links::words_of(&l.transfer))
+                        })
+                })
+                .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1))
+        };
+        let mut pending: Vec<Candidate> = if first {
+            vec![Candidate::new(0, 0, None, false)]
+        } else {
+            Vec::new()
+        };
         let mut forced = 0;
-        let mut link_count = self.link_count();
-        let mut link_words = self.link_words();
+        let mut link_count = self.link_count() - reexamined;
+        let mut link_words = self.link_words() - reexamined_words;
+        // The re-examined links taken out of their lists and not yet decided, with the
+        // next receiver to take them from.
+        let mut taken: Vec<(Candidate, Link)> = Vec::new();
+        let mut next_receiver = 0;
         let mut round = 0;
-        while !pending.is_empty() {
+        loop {
+            let streamed = round == 0 && !first;
+            let round_candidates = if streamed { reexamined } else { pending.len() };
+            if round_candidates == 0 {
+                break;
+            }
             // The round's candidates are decided a chunk at a time, and only the splits are
-            // held until the round ends: a decision is 48 bytes and a kept split 16, against
+            // held until the round ends: a decision is 48 bytes and a kept split 24, against
             // 48 for every candidate of the round at once before. Nothing a decision reads
             // changes within a round (links accepted now are not read by the oracle, and the
             // nodes are subdivided after the last chunk), so the links, the nodes and their
             // order are what deciding the round at once gave.
-            let mut splits: Vec<(u32, u32, Option<Arc<Shaft>>)> = Vec::new();
-            for (chunk, start) in pending
-                .chunks(DECIDE_CHUNK)
-                .zip((0..).step_by(DECIDE_CHUNK))
-            {
+            let mut splits: Vec<Split> = Vec::new();
+            let mut start = 0;
+            while start < round_candidates {
+                let len = DECIDE_CHUNK.min(round_candidates - start);
+                let streamed_chunk: Vec<Candidate>;
+                let mut kept_chunk: Vec<Link> = Vec::new();
+                let chunk: &[Candidate] = if streamed {
+                    while taken.len() < len && next_receiver < self.links.len() {
+                        let p = next_receiver;
+                        let tol = self.tolerance(p as u32, epsilon);
+                        // In place: a fresh pair of vectors per node cost 1 % of the Cornell
+                        // box's linking (5.4 against 1.5 ms).
+                        let mut links = std::mem::take(&mut self.links[p]);
+                        links.retain(|l| {
+                            let keep = self.within(l, &tol);
+                            if !keep {
+                                taken.push((Candidate::new(p as u32, l.source, None, false), *l));
+                            }
+                            keep
+                        });
+                        self.links[p] = links;
+                        next_receiver += 1;
+                    }
+                    let rest = taken.split_off(len.min(taken.len()));
+                    let candidates;
+                    (candidates, kept_chunk) =
+                        std::mem::replace(&mut taken, rest).into_iter().unzip();
+                    streamed_chunk = candidates;
+                    &streamed_chunk
+                } else {
+                    &pending[start..start + len]
+                };
                 // Also short of the node count a link can name ([`links::MAX_NODES`]): a
                 // round splits each node at most once, into at most four, so it at most
                 // quintuples the arena (which grows only between rounds).
                 let at_cap = self.bytes_with(link_words) > self.options.memory_limit
                     || self.tree.nodes.len() > links::MAX_NODES / 5;
                 self.capped |= at_cap;
-                let (kept_chunk, next_at) = kept.read(kept_at, chunk.len());
-                kept_at = next_at;
                 let decisions: Vec<Decision> = chunk
                     .par_iter()
                     .enumerate()
-                    .map(|(i, (p, q, inherited))| {
-                        let tolerance = self.tolerance(*p, epsilon);
+                    .map(|(i, c)| {
+                        let tolerance = self.tolerance(c.p, epsilon);
                         let kept = kept_chunk.get(i);
-                        self.decide(*p, *q, kept, inherited.as_ref(), tolerance, at_cap)
+                        self.decide(c.p, c.q(), kept, c.inherited(), tolerance, at_cap)
                     })
                     .collect();
                 // The candidates come receiver by receiver: each receiver's accepted links go
@@ -732,26 +836,34 @@ impl Hierarchical {
                             forced += usize::from(missed);
                             link_count += 1;
                             link_words += links::words_of(&link.transfer);
-                            let p = chunk[i].0;
+                            let p = chunk[i].p;
                             if p != run_receiver {
                                 extend_links(&mut self.links, run_receiver, &mut run);
                                 run_receiver = p;
                             }
                             run.push(link);
                         }
-                        Decision::Split(n, shaft) => splits.push(((start + i) as u32, n, shaft)),
+                        Decision::Split(n, shaft) => splits.push(Split {
+                            p: chunk[i].p,
+                            q: chunk[i].q(),
+                            n,
+                            shaft,
+                        }),
                     }
                 }
                 extend_links(&mut self.links, run_receiver, &mut run);
                 report(RefineStep {
                     round,
-                    round_candidates: pending.len(),
+                    round_candidates,
                     decided: chunk.len(),
                     links: link_count,
                 });
+                start += len;
             }
-            kept = LinkList::default();
-            let mut split: Vec<u32> = splits.iter().map(|&(_, n, _)| n).collect();
+            // The splits name their pairs: the round's candidates go before the next round's
+            // are made.
+            drop(std::mem::take(&mut pending));
+            let mut split: Vec<u32> = splits.iter().map(|s| s.n).collect();
             split.sort_unstable();
             split.dedup();
             // The pieces are made in parallel and enter the arena in node order, as one at a
@@ -771,47 +883,42 @@ impl Hierarchical {
             let children = |n: u32| self.tree.nodes[n as usize].child_count as usize;
             let size: usize = splits
                 .iter()
-                .map(|&(i, n, _)| {
-                    let (p, q, _) = pending[i as usize];
-                    if p == q {
-                        children(n) * children(n)
+                .map(|s| {
+                    if s.p == s.q {
+                        children(s.n) * children(s.n)
                     } else {
-                        children(n)
+                        children(s.n)
                     }
                 })
                 .sum();
             let mut next = Vec::with_capacity(size);
-            for (i, n, shaft) in splits {
-                let (p, q, _) = pending[i as usize];
-                let inherited = shaft.map(|shaft| Inherited {
-                    shaft,
-                    polygon_split: self.tree.nodes[n as usize].is_polygon(),
-                });
+            for Split { p, q, n, shaft } in splits {
+                let polygon_split = self.tree.nodes[n as usize].is_polygon();
                 if p == q {
                     // A cluster's link to itself: every ordered pair of its children.
                     let children = self.tree.nodes[n as usize].children();
                     for a in children.clone() {
                         for b in children.clone() {
-                            next.push((a, b, None));
+                            next.push(Candidate::new(a, b, None, false));
                         }
                     }
                 } else if n == p {
                     next.extend(
                         self.tree.nodes[p as usize]
                             .children()
-                            .map(|c| (c, q, inherited.clone())),
+                            .map(|c| Candidate::new(c, q, shaft.clone(), polygon_split)),
                     );
                 } else {
                     next.extend(
                         self.tree.nodes[q as usize]
                             .children()
-                            .map(|c| (p, c, inherited.clone())),
+                            .map(|c| Candidate::new(p, c, shaft.clone(), polygon_split)),
                     );
                 }
             }
             // Children inherit their parent's radiosity until the next solve.
             self.inherit_state(leaves_before);
-            next.par_sort_unstable_by_key(|c| (c.0, c.1));
+            next.par_sort_unstable_by_key(|c| (c.p, c.q()));
             pending = next;
             round += 1;
         }
@@ -822,6 +929,7 @@ impl Hierarchical {
             .with_min_len(256)
             .for_each(LinkList::sort_by_source);
         self.forced = forced;
+        self.largest_bytes = self.largest_bytes.max(self.bytes_with(link_words));
         self.form_factor_seconds += started.elapsed().as_secs_f64();
         self.tree.nodes.len() != leaves_before
     }
@@ -845,7 +953,7 @@ impl Hierarchical {
         p: u32,
         q: u32,
         kept: Option<&Link>,
-        inherited: Option<&Inherited>,
+        inherited: Option<Inherited<'_>>,
         threshold: [f64; 3],
         at_cap: bool,
     ) -> Decision {
@@ -1112,7 +1220,7 @@ impl Hierarchical {
         &self,
         p: u32,
         q: u32,
-        inherited: Option<&Inherited>,
+        inherited: Option<Inherited<'_>>,
         refuse_above: Option<&[f64; 3]>,
     ) -> Estimate {
         match self.route(p, q) {
@@ -1150,7 +1258,7 @@ impl Hierarchical {
         &self,
         p: u32,
         q: u32,
-        inherited: Option<&Inherited>,
+        inherited: Option<Inherited<'_>>,
         refuse_above: Option<&[f64; 3]>,
     ) -> Estimate {
         let (np, nq) = (&self.tree.nodes[p as usize], &self.tree.nodes[q as usize]);
@@ -1175,6 +1283,7 @@ impl Hierarchical {
         // The node's centre is this polygon's `polygon_centroid`, kept.
         element_points(polygon, np.centre, order, &mut points);
         let source = self.source(q);
+        let source: &SourcePolygon = &source;
         let xs: SmallVec<[DVec3; 16]> = points.iter().map(|&(x, _)| x).collect();
         let mut values: PointValues = smallvec::smallvec![0.0; xs.len()];
         points_to_polygon(&xs, np.axis, &source.vertices, source.normal, &mut values);
@@ -1544,8 +1653,8 @@ impl Hierarchical {
     /// own polygon is the same), and where the link listed its blockers only those are
     /// tested again instead of walking the BVH (a cluster's children are not clear
     /// because their parent was: their siblings can stand between them).
-    fn shaft(&self, p: u32, q: u32, inherited: Option<&Inherited>) -> Shaft {
-        let listed = match inherited.map(|i| (&*i.shaft, i.polygon_split)) {
+    fn shaft(&self, p: u32, q: u32, inherited: Option<Inherited<'_>>) -> Shaft {
+        let listed = match inherited.map(|i| (i.shaft, i.polygon_split)) {
             Some((Shaft::Clear, true)) => return Shaft::Clear,
             Some((Shaft::Among(packets), _)) => Some(packets.as_slice()),
             _ => None,
@@ -1605,7 +1714,7 @@ impl Hierarchical {
     /// Oriented cluster ← polygon: the Lambert vector Γ(x → q) at the cluster's sample
     /// points (member i receives B_q Γ · n_i), with visibility from each point to the
     /// source's probes.
-    fn cluster_polygon(&self, p: u32, q: u32, inherited: Option<&Inherited>) -> Estimate {
+    fn cluster_polygon(&self, p: u32, q: u32, inherited: Option<Inherited<'_>>) -> Estimate {
         let np = &self.tree.nodes[p as usize];
         let shaft = self.shaft(p, q, inherited);
         let rays = LinkRays::new(&shaft);
@@ -1613,6 +1722,7 @@ impl Hierarchical {
         let count = self.options.cluster_samples * if clear { 1 } else { 4 };
         let samples = self.tree.sample_points(p, count);
         let source = self.source(q);
+        let source: &SourcePolygon = &source;
         let mut g = DVec3::ZERO;
         let (mut lo, mut hi) = (f64::INFINITY, 0.0f64);
         let weight = 1.0 / samples.len().max(1) as f64;
@@ -1649,9 +1759,10 @@ impl Hierarchical {
     /// visible fraction of the source. What splitting the source can still improve is the
     /// partial visibility, which is the error; the spread among the members' orientations is
     /// the element's own, as the constant radiosity over a polygon element is.
-    fn element_polygon(&self, p: u32, q: u32, inherited: Option<&Inherited>) -> Estimate {
+    fn element_polygon(&self, p: u32, q: u32, inherited: Option<Inherited<'_>>) -> Estimate {
         let samples = self.tree.sample_points(p, self.options.cluster_samples);
         let source = self.source(q);
+        let source: &SourcePolygon = &source;
         let factors: SmallVec<[f64; 16]> = samples
             .iter()
             .map(|&(x, n)| point_to_polygon(x, n, &source.vertices, source.normal))
@@ -1694,7 +1805,7 @@ impl Hierarchical {
     /// Links with an oriented cluster at one or both ends, from sample point pairs: per pair
     /// (x_k receiving, y_j emitting, u = (y_j − x_k)/r), the irradiance per unit source
     /// radiosity, with visibility by one ray.
-    fn sampled(&self, p: u32, q: u32, receiver: End, inherited: Option<&Inherited>) -> Estimate {
+    fn sampled(&self, p: u32, q: u32, receiver: End, inherited: Option<Inherited<'_>>) -> Estimate {
         let (np, nq) = (&self.tree.nodes[p as usize], &self.tree.nodes[q as usize]);
         let shaft = self.shaft(p, q, inherited);
         let rays = LinkRays::new(&shaft);
@@ -2600,17 +2711,60 @@ fn extend_links(links: &mut [LinkList], p: u32, run: &mut SmallVec<[Link; 16]>) 
 /// of decisions.
 const DECIDE_CHUNK: usize = 1 << 16;
 
-/// A candidate link p ← q: its ends and what it inherits from the link it was split from
-/// (the link it re-examines, accepted at an earlier stage, is held apart: see
-/// [`Hierarchical::refine_reporting`]).
-type Candidate = (u32, u32, Option<Inherited>);
+/// A candidate link p ← q: its ends and what it inherits from the link it was split from,
+/// that link's shaft (shared by the pair's children) and whether the end that opened was a
+/// polygon, the flag in the top bit of `q_split` (node indices stay below
+/// [`links::MAX_NODES`], 2²⁹). (The link it re-examines, accepted at an earlier stage, is
+/// held apart: see [`Hierarchical::refine_reporting`].) 16 bytes, where a tuple with the
+/// flag beside the shaft took 24: the candidates of a round and the next round's are the
+/// refinement's peak.
+#[derive(Debug, Clone)]
+struct Candidate {
+    p: u32,
+    q_split: u32,
+    shaft: Option<Arc<Shaft>>,
+}
+
+/// A candidate that a round splits: its ends and the end that opens, with the pair's shaft
+/// for the children.
+struct Split {
+    p: u32,
+    q: u32,
+    n: u32,
+    shaft: Option<Arc<Shaft>>,
+}
+
+/// The bit of [`Candidate::q_split`] that says the end that opened was a polygon.
+const POLYGON_SPLIT: u32 = 1 << 31;
+
+impl Candidate {
+    fn new(p: u32, q: u32, shaft: Option<Arc<Shaft>>, polygon_split: bool) -> Self {
+        debug_assert!(q < POLYGON_SPLIT);
+        Self {
+            p,
+            q_split: q | if polygon_split { POLYGON_SPLIT } else { 0 },
+            shaft,
+        }
+    }
+
+    fn q(&self) -> u32 {
+        self.q_split & !POLYGON_SPLIT
+    }
+
+    fn inherited(&self) -> Option<Inherited<'_>> {
+        self.shaft.as_deref().map(|shaft| Inherited {
+            shaft,
+            polygon_split: self.q_split & POLYGON_SPLIT != 0,
+        })
+    }
+}
 
 /// What a candidate link knows of the link it was split from: that link's shaft, and
 /// whether the end that opened was a polygon (whose pieces keep its plane and its own
 /// polygon). See [`Hierarchical::shaft`].
-#[derive(Debug, Clone)]
-struct Inherited {
-    shaft: Arc<Shaft>,
+#[derive(Debug, Clone, Copy)]
+struct Inherited<'a> {
+    shaft: &'a Shaft,
     polygon_split: bool,
 }
 
@@ -3081,7 +3235,7 @@ mod tests {
                 // Every pair split from this one, its shaft found from this one's.
                 let (np, nq) = (&tree.nodes[p as usize], &tree.nodes[q as usize]);
                 let inherited = |polygon_split| Inherited {
-                    shaft: Arc::new(shaft.clone()),
+                    shaft: &shaft,
                     polygon_split,
                 };
                 let from_p = np.children().map(|c| (c, q, inherited(np.is_polygon())));
@@ -3090,7 +3244,7 @@ mod tests {
                     if !facing(a, b) {
                         continue;
                     }
-                    let (is_clear, is_listed) = check(a, b, &h.shaft(a, b, Some(&from)));
+                    let (is_clear, is_listed) = check(a, b, &h.shaft(a, b, Some(from)));
                     split_clear += usize::from(is_clear);
                     split_listed += usize::from(is_listed);
                 }
@@ -3428,5 +3582,45 @@ mod tests {
                 _ => assert_eq!(share, 1.0, "{object}"),
             }
         }
+    }
+
+    /// Letting go of what only the refinement needs changes no result: in a closed
+    /// furnished room (links of every kind, sources made and kept, the joint closure), the
+    /// last mesh made by [`Hierarchical::finish_refining`] starts from the same radiosities
+    /// and gathers exactly what [`Hierarchical::remesh`] gives it, and a later refinement
+    /// changes nothing.
+    #[test]
+    fn finishing_the_refinement_changes_no_result() {
+        let scene = crate::generate::furnished_room(12, 3);
+        let staged = |h: &mut Hierarchical| {
+            let ones = vec![[1.0; 3]; h.mesh().elements.len()];
+            h.set_solution(&ones, &ones);
+            h.refine(0.05);
+            let b = h.remesh_for_refining(&scene);
+            let irradiance = h.gather(&b);
+            h.set_solution(&b, &irradiance);
+            h.refine(0.02);
+        };
+        let (mut kept, mut finished) = (unrefined(&scene), unrefined(&scene));
+        staged(&mut kept);
+        staged(&mut finished);
+        let b_kept = kept.remesh(&scene);
+        let b_finished = finished.finish_refining(&scene);
+        assert_eq!(b_kept, b_finished);
+        let radiosity: Vec<[f64; 3]> = (0..b_kept.len())
+            .map(|i| {
+                [
+                    0.2 + 0.01 * (i % 7) as f64,
+                    0.5,
+                    1.0 - 0.02 * (i % 5) as f64,
+                ]
+            })
+            .collect();
+        assert_eq!(kept.gather(&radiosity), finished.gather(&radiosity));
+        assert!(finished.state.is_empty());
+        let links = finished.link_count();
+        assert!(!finished.refine(0.005));
+        assert_eq!(finished.link_count(), links);
+        assert_eq!(kept.link_count(), links);
     }
 }
