@@ -801,10 +801,8 @@ impl Hierarchical {
                         next_receiver += 1;
                     }
                     let rest = taken.split_off(len.min(taken.len()));
-                    let candidates;
-                    (candidates, kept_chunk) =
+                    (streamed_chunk, kept_chunk) =
                         std::mem::replace(&mut taken, rest).into_iter().unzip();
-                    streamed_chunk = candidates;
                     &streamed_chunk
                 } else {
                     &pending[start..start + len]
