@@ -98,14 +98,15 @@ pub fn solve(
 ) -> Result<HierarchicalSolution, HierarchicalError> {
     let started = std::time::Instant::now();
     let mut h = Hierarchical::new(scene, method.kernel(), hierarchy)?;
-    let mut b = exitance(h.mesh());
     // Before any solve: the emitters' radiosity, and as irradiance the mean the emitted
     // power would give (the oracle's scale for every surface).
+    let b = exitance(h.mesh());
     let guess = vec![
         [h.emitted_power() / h.mesh().elements.iter().map(|e| e.area).sum::<f64>(); 3];
         b.len()
     ];
     h.set_solution(&b, &guess);
+    drop((b, guess));
     let mut solution = None;
     let mut carried = Watch {
         inner: observer,
@@ -125,6 +126,11 @@ pub fn solve(
         progress.message(&label);
         let stage_started = std::time::Instant::now();
         linking_eta.start_stage(linking_seconds);
+        // Neither the last stage's solution nor its leaf mesh is read by the refinement, and
+        // the remesh after it replaces both: held through it, they were 1.2 GiB of what the
+        // room of 10⁵ objects held while linking.
+        drop(solution.take());
+        h.release_leaf_mesh();
         let mut links_kept = h.link_count();
         h.refine_reporting(epsilon, &mut |step| {
             let now = linking_seconds + stage_started.elapsed().as_secs_f64();
@@ -146,7 +152,7 @@ pub fn solve(
         progress.message(&format!("{label}, {links_kept} links kept"));
         progress.finish();
         // The final mesh is balanced in full; the others only guide the next refinement.
-        b = if stage == 0 {
+        let b = if stage == 0 {
             h.finish_refining(scene)
         } else {
             h.remesh_for_refining(scene)
@@ -178,10 +184,9 @@ pub fn solve(
             &mut |x| *x = reflect(mesh, &non_negative(coupling.gather(x))),
         );
         carried.iterations += s.stats.iterations;
-        b = s.radiosity.clone();
         // The next refinement's oracle (none after the last stage).
         if stage > 0 {
-            h.set_solution(&b, &s.irradiance);
+            h.set_solution(&s.radiosity, &s.irradiance);
         }
         solution = Some(s);
         if carried.stopped {

@@ -211,6 +211,9 @@ impl BalanceInputs {
             .map(|&l| tree.nodes[l as usize].area)
             .collect();
         let rows = RowInputs::new(h);
+        // The gather's scratch (192 bytes a node) is not held through the columns' sweeps
+        // and the balance's iterations: the next gather makes it again.
+        *h.gather_buffers() = super::GatherBuffers::default();
         let c0 = columns(h);
         let w_col = column_weights(h, &area);
         Self {

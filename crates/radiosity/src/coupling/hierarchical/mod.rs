@@ -521,15 +521,16 @@ impl Hierarchical {
 
     /// The last leaf mesh, once the links are final ([`Hierarchical::remesh`]), for a
     /// hierarchy that will not be refined again: what only the refinement needs goes first
-    /// (the sources' cached points, the room that the arena, the per-node vectors and the
-    /// link lists kept to grow into) and the oracle's per-node state after the mesh's
-    /// starting radiosities are read from it, so that the closure and the iterations run in
-    /// that much less memory. Later calls to [`Hierarchical::refine`] change nothing, and
-    /// [`Hierarchical::set_solution`] is not needed.
+    /// (the sources, the room that the arena, the per-node vectors and the link lists kept
+    /// to grow into), and once the leaves are made, what only a refinement or a remesh reads
+    /// (the oracle's per-node state, after the mesh's starting radiosities are read from it;
+    /// the ray-casting structure; the tree's vertices), so that the closure and the
+    /// iterations run in that much less memory. What is left is the coupling: its mesh and
+    /// gather. Later calls to [`Hierarchical::refine`] change nothing; neither
+    /// [`Hierarchical::set_solution`] nor a remesh may follow (the tree has no vertices, the
+    /// hierarchy no state to start from).
     pub fn finish_refining(&mut self, scene: &Scene) -> Vec<[f64; 3]> {
-        let n = self.tree.nodes.len();
         self.sources = Vec::new();
-        self.sources.resize_with(n, OnceLock::new);
         self.source_bytes.store(0, Ordering::Relaxed);
         self.tree.nodes.shrink_to_fit();
         self.tree.vertices.shrink_to_fit();
@@ -539,8 +540,7 @@ impl Hierarchical {
             .with_min_len(256)
             .for_each(LinkList::shrink_to_fit);
         self.seen.shrink_to_fit();
-        let b = self.remesh(scene);
-        self.state = Vec::new();
+        let b = self.remesh_releasing(scene, Balance::Joint, Release::Refinement);
         self.finished = true;
         b
     }
@@ -2065,6 +2065,12 @@ impl Hierarchical {
     /// input polygon, vertices welded per polygon (children share their parents' exact edge
     /// midpoints), with the light sources' direct irradiance on every leaf.
     fn rebuild_mesh(&mut self, objects: &[String], scene: &Scene, balance: Balance) {
+        self.rebuild_leaves(objects, scene);
+        self.closure = closure::Closure::new(self, self.enclosure, balance);
+    }
+
+    /// The leaf mesh of [`Hierarchical::rebuild_mesh`] with no closure yet.
+    fn rebuild_leaves(&mut self, objects: &[String], scene: &Scene) {
         // The old mesh and closure go first: nothing below reads them, and held while the
         // new ones are built they were the peak of the room of 10⁵ objects (its leaf mesh
         // alone about 1 GiB).
@@ -2142,29 +2148,69 @@ impl Hierarchical {
         }
         self.mesh = mesh;
         self.leaves = leaves;
-        self.closure = closure::Closure::new(self, self.enclosure, balance);
     }
 
     /// After [`Hierarchical::refine`]: the leaf mesh of the refined hierarchy and, for each of
     /// its elements, the radiosity to start from (the old leaf's or its ancestor's value).
     /// A closed scene's rows and columns are closed together ([`closure`]).
     pub fn remesh(&mut self, scene: &Scene) -> Vec<[f64; 3]> {
-        self.remesh_balancing(scene, Balance::Joint)
+        self.remesh_releasing(scene, Balance::Joint, Release::Nothing)
     }
 
     /// [`Hierarchical::remesh`] for a mesh whose solution only guides the next refinement:
-    /// a closed scene's rows alone are closed ([`closure::Balance::Rows`]).
+    /// a closed scene's rows alone are closed ([`closure::Balance::Rows`]), and the oracle's
+    /// per-node state goes once the starting radiosities are read from it (96 bytes a node,
+    /// not held through the closure and the iterations): [`Hierarchical::set_solution`] makes
+    /// it again, and must come before the next refinement.
     pub fn remesh_for_refining(&mut self, scene: &Scene) -> Vec<[f64; 3]> {
-        self.remesh_balancing(scene, Balance::Rows)
+        self.remesh_releasing(scene, Balance::Rows, Release::State)
     }
 
-    fn remesh_balancing(&mut self, scene: &Scene, balance: Balance) -> Vec<[f64; 3]> {
+    /// The new leaf mesh, its starting radiosities read from the oracle's state, then what
+    /// `release` names let go, then the mesh's closure.
+    fn remesh_releasing(
+        &mut self,
+        scene: &Scene,
+        balance: Balance,
+        release: Release,
+    ) -> Vec<[f64; 3]> {
+        assert!(
+            !self.finished,
+            "a hierarchy whose refinement is finished has no state to remesh from"
+        );
         let objects = self.mesh.objects.clone();
-        self.rebuild_mesh(&objects, scene, balance);
-        self.leaves
+        self.rebuild_leaves(&objects, scene);
+        let b = self
+            .leaves
             .iter()
             .map(|&l| self.state[l as usize].b)
-            .collect()
+            .collect();
+        if release != Release::Nothing {
+            self.state = Vec::new();
+        }
+        if release == Release::Refinement {
+            // The ray-casting structure and the input polygons' normals (used for the new
+            // leaves' direct light and seen shares, made above) and the tree's vertices (the
+            // mesh has its own): with the state, about 0.8 GiB of the room of 10⁵ objects.
+            self.visibility = Visibility::from_polygons(std::iter::empty::<&[DVec3]>(), 1.0);
+            self.input_normals = Vec::new();
+            self.two_faced = Vec::new();
+            self.tree.vertices = Vec::new();
+        }
+        self.closure = closure::Closure::new(self, self.enclosure, balance);
+        b
+    }
+
+    /// Lets go of the leaf mesh and its closure before a refinement (the remesh after it
+    /// makes new ones): until then the coupling has no elements. The solver does this so
+    /// that the refinement's peak does not hold a mesh it never reads (1.2 GiB in the room
+    /// of 10⁵ objects).
+    pub fn release_leaf_mesh(&mut self) {
+        self.mesh = Mesh {
+            objects: std::mem::take(&mut self.mesh.objects),
+            ..Mesh::default()
+        };
+        self.closure = closure::Closure::default();
     }
 
     /// Links by kind: polygon, from cluster, to cluster, tensor, uniform.
@@ -2887,6 +2933,18 @@ fn oracle_state(tree: &Tree, leaves: &[u32], pulled: &[Pulled], state: &mut Vec<
     set_spread(tree, leaves, pulled, state);
 }
 
+/// What a remesh lets go once the new leaves and their starting radiosities are made
+/// ([`Hierarchical::remesh_releasing`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Release {
+    /// Nothing: the hierarchy can be refined and remeshed again as it is.
+    Nothing,
+    /// The oracle's state, which [`Hierarchical::set_solution`] makes again.
+    State,
+    /// Everything only a refinement or a remesh reads ([`Hierarchical::finish_refining`]).
+    Refinement,
+}
+
 /// The scratch vectors of one gather (the pulled state, what each node gathered and then what
 /// is pushed down to it), kept between iterations.
 #[derive(Default)]
@@ -3580,6 +3638,31 @@ mod tests {
                 _ => assert_eq!(share, 1.0, "{object}"),
             }
         }
+    }
+
+    /// Letting the leaf mesh go before a refinement, as the solver does, changes no result:
+    /// the refinement never reads it and the remesh after it makes the same mesh, starting
+    /// radiosities and gather as a hierarchy that kept it; until then the coupling has no
+    /// elements.
+    #[test]
+    fn releasing_the_leaf_mesh_before_refining_changes_no_result() {
+        let scene = crate::generate::furnished_room(12, 3);
+        let (mut kept, mut released) = (unrefined(&scene), unrefined(&scene));
+        for h in [&mut kept, &mut released] {
+            let ones = vec![[1.0; 3]; h.mesh().elements.len()];
+            h.set_solution(&ones, &ones);
+        }
+        released.release_leaf_mesh();
+        assert!(released.mesh().elements.is_empty());
+        kept.refine(0.05);
+        released.refine(0.05);
+        assert_eq!(kept.link_count(), released.link_count());
+        let b_kept = kept.remesh(&scene);
+        let b_released = released.remesh(&scene);
+        assert_eq!(b_kept, b_released);
+        assert_eq!(kept.mesh().objects, released.mesh().objects);
+        assert_eq!(kept.mesh().elements, released.mesh().elements);
+        assert_eq!(kept.gather(&b_kept), released.gather(&b_released));
     }
 
     /// Letting go of what only the refinement needs changes no result: in a closed

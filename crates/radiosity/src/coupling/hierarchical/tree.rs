@@ -172,10 +172,13 @@ impl Tree {
         self.nodes[node as usize].leaves.0 >= self.buried_from
     }
 
-    /// The vertices of a polygon node.
+    /// The vertices of a polygon node (none once the hierarchy's refinement is finished:
+    /// [`super::Hierarchical::finish_refining`]).
     pub fn polygon(&self, node: u32) -> &[DVec3] {
         let n = &self.nodes[node as usize];
-        &self.vertices[n.vertex_start as usize..(n.vertex_start + n.vertex_count) as usize]
+        self.vertices
+            .get(n.vertex_start as usize..(n.vertex_start + n.vertex_count) as usize)
+            .unwrap_or(&[])
     }
 
     /// Builds the cluster tree over `polygons` (scene surfaces with their data): a binary
