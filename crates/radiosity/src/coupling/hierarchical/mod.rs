@@ -533,7 +533,6 @@ impl Hierarchical {
         self.sources = Vec::new();
         self.source_bytes.store(0, Ordering::Relaxed);
         self.tree.nodes.shrink_to_fit();
-        self.tree.vertices.shrink_to_fit();
         self.links.shrink_to_fit();
         self.links
             .par_iter_mut()
