@@ -9,10 +9,14 @@
 //! | kind | words | bytes |
 //! |---|---|---|
 //! | uniform | 3 | 12 |
+//! | polygon with neither gradient nor moment | 3 | 12 |
 //! | from or to a cluster | 6 | 24 |
 //! | polygon, tensor | 9 | 36 |
 //!
-//! The numbers are kept as their bits, so a link reads back exactly as it was stored.
+//! The numbers are kept as their bits, so a link reads back exactly as it was stored. A
+//! polygon transfer whose gradient and moment are all +0 (the oracle stores them so between
+//! polygons that never split: [`super::Hierarchical::polygon_polygon`]) is kept as its mean
+//! alone, and reads back with them +0.
 
 use super::{Link, Transfer};
 
@@ -31,6 +35,8 @@ const UNIFORM: u32 = 1;
 const FROM_CLUSTER: u32 = 2;
 const TO_CLUSTER: u32 = 3;
 const TENSOR: u32 = 4;
+/// A polygon transfer with gradient and moment all +0 (see the module documentation).
+const FLAT_POLYGON: u32 = 5;
 
 /// The links into one node, in the order they were added (or by source once sorted).
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -42,8 +48,20 @@ pub struct LinkList {
 pub(super) fn words_of(transfer: &Transfer) -> usize {
     match transfer {
         Transfer::Uniform(_) => 3,
+        t if flat(t) => 3,
         Transfer::FromCluster(..) | Transfer::ToCluster(..) => 6,
         Transfer::Polygon { .. } | Transfer::Tensor(..) => 9,
+    }
+}
+
+/// Whether `transfer` is a polygon transfer with gradient and moment all +0 (their bits 0,
+/// so that storing the mean alone loses nothing, not even a sign).
+fn flat(transfer: &Transfer) -> bool {
+    match transfer {
+        Transfer::Polygon {
+            gradient, moment, ..
+        } => gradient.iter().chain(moment).all(|v| v.to_bits() == 0),
+        _ => false,
     }
 }
 
@@ -59,6 +77,9 @@ impl LinkList {
         };
         let delta = link.delta.to_bits();
         match link.transfer {
+            Transfer::Polygon { f, .. } if flat(&link.transfer) => {
+                self.words.extend([head(FLAT_POLYGON), delta, f.to_bits()]);
+            }
             Transfer::Polygon {
                 f,
                 gradient,
@@ -198,6 +219,21 @@ fn decode(w: &[u32]) -> (Link, usize) {
             };
             (link, 3)
         }
+        FLAT_POLYGON => {
+            let a: &[u32; 3] = w[..3]
+                .try_into()
+                .expect("a flat polygon link is three words");
+            let link = Link {
+                source,
+                transfer: Transfer::Polygon {
+                    f: f(a[2]),
+                    gradient: [0.0; 3],
+                    moment: [0.0; 3],
+                },
+                delta: f(a[1]),
+            };
+            (link, 3)
+        }
         kind @ (FROM_CLUSTER | TO_CLUSTER) => {
             let a: &[u32; 6] = w[..6].try_into().expect("a cluster link is six words");
             let (g, m) = (three(&a[2..5]), f(a[5]));
@@ -280,6 +316,25 @@ mod tests {
                 transfer: Transfer::Uniform(0.0),
                 delta: 0.0,
             },
+            Link {
+                source: 9,
+                transfer: Transfer::Polygon {
+                    f: f(20),
+                    gradient: [0.0; 3],
+                    moment: [0.0; 3],
+                },
+                delta: 0.5,
+            },
+            // A negative zero is a number of its own: nine words.
+            Link {
+                source: 10,
+                transfer: Transfer::Polygon {
+                    f: f(21),
+                    gradient: [0.0, -0.0, 0.0],
+                    moment: [0.0; 3],
+                },
+                delta: 0.5,
+            },
         ]
     }
 
@@ -296,8 +351,8 @@ mod tests {
             assert_eq!(format!("{a:?}"), format!("{b:?}"));
             assert_eq!(a.delta.to_bits(), b.delta.to_bits());
         }
-        assert_eq!(list.len(), 6);
-        assert_eq!(list.words(), 9 + 3 + 6 + 6 + 9 + 3);
+        assert_eq!(list.len(), 8);
+        assert_eq!(list.words(), 9 + 3 + 6 + 6 + 9 + 3 + 3 + 9);
         assert_eq!(
             list.words(),
             links.iter().map(|l| words_of(&l.transfer)).sum::<usize>()
