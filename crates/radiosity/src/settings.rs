@@ -369,7 +369,7 @@ pub fn resolve(
         Pick::new(name, "--epsilon", "epsilon", flags.epsilon, fs.epsilon),
         0.0,
         1.0,
-        "a fraction of the emitted power between 0 and 1 (exclusive)",
+        "a fraction of each receiver's irradiance between 0 and 1 (exclusive)",
     )? {
         settings.solve.hierarchical.epsilon = e;
     }
